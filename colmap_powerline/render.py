@@ -38,8 +38,9 @@ def fbm(
         gh, gw = max(int(h / cell) + 3, 3), max(int(w / cell) + 3, 3)
         grid = rng.standard_normal((gh, gw)).astype(np.float32)
         # Resize a slightly larger grid and crop, so the field has no edge artefacts.
-        big = cv2.resize(grid, (int((gw - 1) * cell), int((gh - 1) * cell)),
-                         interpolation=cv2.INTER_CUBIC)
+        big = cv2.resize(
+            grid, (int((gw - 1) * cell), int((gh - 1) * cell)), interpolation=cv2.INTER_CUBIC
+        )
         oy = int(rng.integers(0, max(big.shape[0] - h, 0) + 1))
         ox = int(rng.integers(0, max(big.shape[1] - w, 0) + 1))
         band = big[oy : oy + h, ox : ox + w]
@@ -86,8 +87,8 @@ def draw_thin_polyline(
     k = len(uv)
     if k < 2:
         return
-    width_px = np.broadcast_to(np.asarray(width_px, np.float64), (k,))
-    value = np.broadcast_to(np.asarray(value, np.float64), (k,))
+    widths = np.broadcast_to(np.asarray(width_px, np.float64), (k,))
+    values = np.broadcast_to(np.asarray(value, np.float64), (k,))
     tangent = np.gradient(uv, axis=0)
     norm = np.linalg.norm(tangent, axis=1)
     ok = np.isfinite(uv).all(axis=1) & np.isfinite(norm) & (norm > 1e-9)
@@ -95,13 +96,13 @@ def draw_thin_polyline(
     if not ok.any():
         return
     uv, tangent, norm = uv[ok], tangent[ok], norm[ok]
-    width_px, value = width_px[ok], value[ok]
+    widths, values = widths[ok], values[ok]
     tangent = tangent / norm[:, None]
     step = np.maximum(norm, 0.05)
-    r = int(np.ceil(width_px.max() / 2 + 1.0))
+    r = int(np.ceil(widths.max() / 2 + 1.0))
     offs = np.arange(-r, r + 1)
-    ox, oy = np.meshgrid(offs, offs)
-    ox, oy = ox.ravel(), oy.ravel()
+    gx, gy = np.meshgrid(offs, offs)
+    ox, oy = gx.ravel(), gy.ravel()
     # Pixel indices around each sample and their centres (pixel (i, j) has centre j+.5, i+.5).
     base = np.floor(uv).astype(np.int64)
     cols = base[:, :1] + ox[None, :]
@@ -110,11 +111,11 @@ def draw_thin_polyline(
     dy = rows + 0.5 - uv[:, 1:]
     along = np.abs(dx * tangent[:, :1] + dy * tangent[:, 1:])
     perp = np.abs(dx * tangent[:, 1:] - dy * tangent[:, :1])
-    half = width_px[:, None] / 2
+    half = widths[:, None] / 2
     cover = np.clip(np.minimum(perp + 0.5, half) - np.maximum(perp - 0.5, -half), 0, 1)
     keep = (along <= step[:, None] * 0.75) & (cover > 0)
     keep &= (cols >= 0) & (cols < w) & (rows >= 0) & (rows < h)
-    vals = (cover * value[:, None])[keep].astype(np.float32)
+    vals = (cover * values[:, None])[keep].astype(np.float32)
     flat = rows[keep] * w + cols[keep]
     np.maximum.at(canvas.reshape(-1), flat, vals)
 

@@ -28,6 +28,14 @@ BoolArray = npt.NDArray[np.bool_]
 _MODEL_FILES = ("cameras", "images", "points3D")
 
 
+def cam_from_img(camera: pycolmap.Camera, uv: FloatArray) -> FloatArray:
+    """(N, 2) pixels → (N, 2) normalised camera coordinates through pycolmap's lens model."""
+    xy = camera.cam_from_img(np.asarray(uv, dtype=np.float64).reshape(-1, 2))
+    if xy is None:
+        raise ValueError(f"pycolmap could not undistort pixels with camera {camera.model_name}")
+    return np.asarray(xy, dtype=np.float64)
+
+
 @dataclass(frozen=True, eq=False)
 class SceneImage:
     """One registered image: its camera, pose and file.
@@ -83,7 +91,7 @@ class SceneImage:
             [[0, 0], [w, 0], [0, h], [w, h], [w / 2, 0], [w / 2, h], [0, h / 2], [w, h / 2]],
             dtype=np.float64,
         )
-        xy = self.camera.cam_from_img(border)
+        xy = cam_from_img(self.camera, border)
         return float(np.linalg.norm(xy, axis=1).max() * 1.1)
 
     def to_cam(self, pts_in_world: FloatArray) -> FloatArray:
@@ -126,7 +134,7 @@ class SceneImage:
     def rays_in_world(self, uv: FloatArray) -> FloatArray:
         """(N, 2) pixel coordinates → (N, 3) unit ray directions in the model frame."""
         uv = np.asarray(uv, dtype=np.float64).reshape(-1, 2)
-        xy = self.camera.cam_from_img(uv)
+        xy = cam_from_img(self.camera, uv)
         rays_in_cam = np.c_[xy, np.ones(len(xy))]
         rays_in_world = rays_in_cam @ self.rot_cam_from_world
         return rays_in_world / np.linalg.norm(rays_in_world, axis=1, keepdims=True)

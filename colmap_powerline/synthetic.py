@@ -33,7 +33,7 @@ from scipy import ndimage
 from tqdm import tqdm
 
 from .render import draw_thin_polyline, fbm, periodic_noise, remap
-from .scene import SceneImage
+from .scene import SceneImage, cam_from_img
 
 logger = logging.getLogger(__name__)
 
@@ -234,8 +234,11 @@ class SyntheticSpan:
         """Normalised camera coordinates of every pixel centre (lens distortion removed)."""
         w, h = self.camera.width, self.camera.height
         u, v = np.meshgrid(np.arange(w) + 0.5, np.arange(h) + 0.5)
-        xy = self.camera.cam_from_img(np.c_[u.ravel(), v.ravel()])
-        return (xy[:, 0].reshape(h, w).astype(np.float32), xy[:, 1].reshape(h, w).astype(np.float32))
+        xy = cam_from_img(self.camera, np.c_[u.ravel(), v.ravel()])
+        return (
+            xy[:, 0].reshape(h, w).astype(np.float32),
+            xy[:, 1].reshape(h, w).astype(np.float32),
+        )
 
 
 # ---------------------------------------------------------------- scene geometry
@@ -291,26 +294,34 @@ def _make_towers_and_wires(
             h1, h2 = half_width(z1), half_width(z2)
             for k, (a, b) in enumerate(corners):
                 a2, b2 = corners[(k + 1) % 4]
-                members.append(Member(world(base, a * h1, b * h1, z1), world(base, a * h2, b * h2, z2), 0.3))
-                members.append(Member(world(base, a * h2, b * h2, z2), world(base, a2 * h2, b2 * h2, z2), 0.1))
-                members.append(Member(world(base, a * h1, b * h1, z1), world(base, a2 * h2, b2 * h2, z2), 0.08))
-                members.append(Member(world(base, a2 * h1, b2 * h1, z1), world(base, a * h2, b * h2, z2), 0.08))
+                members.append(
+                    Member(world(base, a * h1, b * h1, z1), world(base, a * h2, b * h2, z2), 0.3)
+                )
+                members.append(
+                    Member(world(base, a * h2, b * h2, z2), world(base, a2 * h2, b2 * h2, z2), 0.1)
+                )
+                members.append(
+                    Member(world(base, a * h1, b * h1, z1), world(base, a2 * h2, b2 * h2, z2), 0.08)
+                )
+                members.append(
+                    Member(world(base, a2 * h1, b2 * h1, z1), world(base, a * h2, b * h2, z2), 0.08)
+                )
         points: dict[tuple, tuple[float, float, float]] = {}
         hw = half_width(arm_z[0])
         for phase, (z, length) in enumerate(zip(arm_z, arm_len, strict=True)):
             for side in (-1.0, 1.0):
                 tip = world(base, 0.0, side * length, z)
-                for a in (-1.0, 1.0):
-                    members.append(Member(world(base, a * hw, side * hw, z), tip, 0.15))
-                    members.append(Member(world(base, a * hw, side * hw, z + 1.8), tip, 0.1))
+                for sa in (-1.0, 1.0):
+                    members.append(Member(world(base, sa * hw, side * hw, z), tip, 0.15))
+                    members.append(Member(world(base, sa * hw, side * hw, z + 1.8), tip, 0.1))
                 low = world(base, 0.0, side * length, z - insulator_m)
                 members.append(Member(tip, low, 0.25))
                 points[("c", side, phase)] = low
         shield_c = (-3.0, 3.0) if opts.num_shield_wires == 2 else (0.0,)
         for c in shield_c:
             tip = world(base, 0.0, c, shield_z)
-            for a in (-1.0, 1.0):
-                members.append(Member(world(base, a * hw, np.sign(c) * hw, top_z), tip, 0.12))
+            for sa in (-1.0, 1.0):
+                members.append(Member(world(base, sa * hw, np.sign(c) * hw, top_z), tip, 0.12))
             points[("s", c, 0)] = tip
         towers.append(members)
         attach.append(points)
@@ -340,7 +351,10 @@ def make_camera(scale: float) -> pycolmap.Camera:
     cx = w / 2 + PRINCIPAL_OFFSET_PX[0] * scale
     cy = h / 2 + PRINCIPAL_OFFSET_PX[1] * scale
     return pycolmap.Camera(
-        model="OPENCV", width=w, height=h, params=[f, f, cx, cy, *DISTORTION_K1_K2_P1_P2],
+        model="OPENCV",
+        width=w,
+        height=h,
+        params=[f, f, cx, cy, *DISTORTION_K1_K2_P1_P2],
         camera_id=1,
     )
 
@@ -358,8 +372,11 @@ def _rotation_nadir(heading_xy: F64, rng: np.random.Generator, jitter_deg: float
 
 
 def _plan_flight(
-    opts: SyntheticSpanOptions, camera: pycolmap.Camera, wires: list[TrueWire],
-    terrain: Terrain, rng: np.random.Generator,
+    opts: SyntheticSpanOptions,
+    camera: pycolmap.Camera,
+    wires: list[TrueWire],
+    terrain: Terrain,
+    rng: np.random.Generator,
 ) -> list[SceneImage]:
     along, across = _line_frame(opts)
     z_cam = max(max(w.attach_a[2], w.attach_b[2]) for w in wires) + opts.height_above_wires_m
@@ -390,8 +407,12 @@ def _plan_flight(
             name = f"DJI_{len(views) + 1:04d}.JPG"
             views.append(
                 SceneImage(
-                    image_id=len(views) + 1, name=name, path=Path(name), camera=camera,
-                    rot_cam_from_world=rot, t_cam_from_world=-rot @ center,
+                    image_id=len(views) + 1,
+                    name=name,
+                    path=Path(name),
+                    camera=camera,
+                    rot_cam_from_world=rot,
+                    t_cam_from_world=-rot @ center,
                 )
             )
     return views
@@ -404,8 +425,10 @@ def _ground_domain(views: list[SceneImage], z: float) -> tuple[float, float, flo
     pts = []
     for v in views:
         w, h = v.width, v.height
-        uv = np.array([[0, 0], [w, 0], [0, h], [w, h], [w / 2, 0], [w / 2, h], [0, h / 2], [w, h / 2]],
-                      dtype=np.float64)
+        uv = np.array(
+            [[0, 0], [w, 0], [0, h], [w, h], [w / 2, 0], [w / 2, h], [0, h / 2], [w, h / 2]],
+            dtype=np.float64,
+        )
         rays = v.rays_in_world(uv)
         c = v.center_in_world
         t = (z - c[2]) / rays[:, 2]
@@ -416,7 +439,11 @@ def _ground_domain(views: list[SceneImage], z: float) -> tuple[float, float, flo
 
 
 def _albedo(
-    opts: SyntheticSpanOptions, shape: tuple[int, int], res: float, gx: F32, gy: F32,
+    opts: SyntheticSpanOptions,
+    shape: tuple[int, int],
+    res: float,
+    gx: F32,
+    gy: F32,
     rng: np.random.Generator,
 ) -> tuple[F32, F32]:
     """Ground colour (H, W, 3) in 0..255 and the fine-detail amplitude (H, W)."""
@@ -430,21 +457,31 @@ def _albedo(
     def meadow() -> tuple[F32, F32]:
         g = fbm(shape, rng, [25 * px, 6 * px, 1.5 * px], [1.0, 0.6, 0.35])
         dry = fbm(shape, rng, [40 * px, 10 * px], [1.0, 0.5])
-        light, dark = np.float32([96, 128, 58]), np.float32([52, 84, 36])
-        col = mix(np.broadcast_to(dark, (h, w, 3)), np.broadcast_to(light, (h, w, 3)), 0.5 + 0.22 * g)
-        col = mix(col, np.broadcast_to(np.float32([128, 122, 78]), (h, w, 3)), (dry - 1.2) * 1.5)
+        light, dark = np.array([96, 128, 58], np.float32), np.array([52, 84, 36], np.float32)
+        col = mix(
+            np.broadcast_to(dark, (h, w, 3)), np.broadcast_to(light, (h, w, 3)), 0.5 + 0.22 * g
+        )
+        col = mix(
+            col, np.broadcast_to(np.array([128, 122, 78], np.float32), (h, w, 3)), (dry - 1.2) * 1.5
+        )
         trees = fbm(shape, rng, [14 * px, 5 * px], [1.0, 0.5])
         crowns = fbm(shape, rng, [1.2 * px, 0.4 * px], [1.0, 0.5])
         canopy = np.clip((trees - 1.35) * 4, 0, 1)
-        tree_col = mix(np.broadcast_to(np.float32([30, 52, 28]), (h, w, 3)),
-                       np.broadcast_to(np.float32([66, 96, 48]), (h, w, 3)), 0.5 + 0.35 * crowns)
+        tree_col = mix(
+            np.broadcast_to(np.array([30, 52, 28], np.float32), (h, w, 3)),
+            np.broadcast_to(np.array([66, 96, 48], np.float32), (h, w, 3)),
+            0.5 + 0.35 * crowns,
+        )
         col = mix(col, tree_col, canopy)
         return col.astype(np.float32), (0.16 + 0.08 * canopy).astype(np.float32)
 
     def soil() -> tuple[F32, F32]:
         g = fbm(shape, rng, [30 * px, 8 * px, 2 * px], [1.0, 0.5, 0.3])
-        col = mix(np.broadcast_to(np.float32([132, 114, 92]), (h, w, 3)),
-                  np.broadcast_to(np.float32([168, 148, 118]), (h, w, 3)), 0.6 + 0.2 * g)
+        col = mix(
+            np.broadcast_to(np.array([132, 114, 92], np.float32), (h, w, 3)),
+            np.broadcast_to(np.array([168, 148, 118], np.float32), (h, w, 3)),
+            0.6 + 0.2 * g,
+        )
         return col.astype(np.float32), np.full(shape, 0.07, np.float32)
 
     if opts.background is Background.VEGETATION:
@@ -473,12 +510,13 @@ def _albedo(
     dash = (np.mod(dl, 9.0) < 3.0).astype(np.float32)
     centre = np.clip((line_w / 2 - np.abs(dn)) / res + 0.5, 0, 1) * dash
     white = np.maximum(edge, centre)
-    col = mix(col, np.broadcast_to(np.float32([225, 225, 220]), (h, w, 3)), white)
+    col = mix(col, np.broadcast_to(np.array([225, 225, 220], np.float32), (h, w, 3)), white)
     return col.astype(np.float32), amp.astype(np.float32)
 
 
-def _bake_ortho(span: SyntheticSpan, domain: tuple[float, float, float, float],
-                rng: np.random.Generator) -> None:
+def _bake_ortho(
+    span: SyntheticSpan, domain: tuple[float, float, float, float], rng: np.random.Generator
+) -> None:
     """Ground radiance raster: albedo x hill shading x cast shadows of towers and wires."""
     opts, terrain, sun = span.options, span.terrain, span.sun_in_world
     gsd = span.views[0].gsd_at_depth(span.views[0].center_in_world[2] - terrain.z.mean())
@@ -487,8 +525,9 @@ def _bake_ortho(span: SyntheticSpan, domain: tuple[float, float, float, float],
     w, h = int((x1 - x0) / res) + 1, int((y1 - y0) / res) + 1
     if max(w, h) >= 32000:
         raise ValueError(f"ground raster of {w}x{h} px is too large for OpenCV; reduce the scene")
-    gx, gy = np.meshgrid(x0 + res * np.arange(w, dtype=np.float32),
-                         y0 + res * np.arange(h, dtype=np.float32))
+    gx, gy = np.meshgrid(
+        x0 + res * np.arange(w, dtype=np.float32), y0 + res * np.arange(h, dtype=np.float32)
+    )
     albedo, amp = _albedo(opts, (h, w), res, gx, gy, rng)
 
     # Hill shading from the heightfield normals, normalised so flat ground is 1.
@@ -498,8 +537,11 @@ def _bake_ortho(span: SyntheticSpan, domain: tuple[float, float, float, float],
     normal /= np.linalg.norm(normal, axis=-1, keepdims=True)
     lit = normal @ sun
     shade = ((0.35 + 0.65 * np.clip(lit, 0, 1)) / (0.35 + 0.65 * sun[2])).astype(np.float32)
-    shade_o = remap(shade, (gx - terrain.x0) / np.float32(terrain.res_m),
-                    (gy - terrain.y0) / np.float32(terrain.res_m))
+    shade_o = remap(
+        shade,
+        (gx - terrain.x0) / np.float32(terrain.res_m),
+        (gy - terrain.y0) / np.float32(terrain.res_m),
+    )
 
     # Cast shadows, drawn in the raster: tower members and wires projected along the sun.
     shadow = np.zeros((h, w), np.uint8)
@@ -519,15 +561,18 @@ def _bake_ortho(span: SyntheticSpan, domain: tuple[float, float, float, float],
         p = on_ground(np.array([m.p for m in members]))
         q = on_ground(np.array([m.q for m in members]))
         for a, b, m in zip(to_px(p), to_px(q), members, strict=True):
-            cv2.line(shadow, tuple(a), tuple(b), 140, max(1, round(m.width_m / res)), cv2.LINE_AA, 4)
+            cv2.line(
+                shadow, tuple(a), tuple(b), 140, max(1, round(m.width_m / res)), cv2.LINE_AA, 4
+            )
     for wire in span.wires:
         pts = wire.polyline(0.5)
         g = on_ground(pts)
         dist = np.linalg.norm(pts - g, axis=1).mean()
         penumbra = wire.diameter_m + dist * 0.0093  # the sun's disc is 0.53° wide
         strength = int(140 * min(1.0, wire.diameter_m / penumbra))
-        cv2.polylines(shadow, [to_px(g)], False, strength, max(1, round(penumbra / res)),
-                      cv2.LINE_AA, 4)
+        cv2.polylines(
+            shadow, [to_px(g)], False, strength, max(1, round(penumbra / res)), cv2.LINE_AA, 4
+        )
     shadow_f = 1.0 - cv2.GaussianBlur(shadow, (0, 0), 0.7).astype(np.float32) / 255.0
     radiance = albedo * (shade_o * shadow_f)[..., None]
     span.ortho = np.dstack([np.clip(radiance, 0, 255), np.clip(amp * 255, 0, 255)]).astype(np.uint8)
@@ -575,13 +620,18 @@ def render_image(span: SyntheticSpan, view: SceneImage, rng: np.random.Generator
     gy = np.float32(c[1]) + t * dy
     del dx, dy, dz, mx, my, zg, t
     ores = np.float32(span.ortho_res_m)
-    ground = remap(span.ortho, (gx - np.float32(span.ortho_x0)) / ores,
-                   (gy - np.float32(span.ortho_y0)) / ores).astype(np.float32)
+    ground = remap(
+        span.ortho, (gx - np.float32(span.ortho_x0)) / ores, (gy - np.float32(span.ortho_y0)) / ores
+    ).astype(np.float32)
     dres = np.float32(span.detail_res_m)
     d1 = remap(span.detail_tiles[0], gx / dres, gy / dres, wrap=True)
     cr, sr = np.float32(np.cos(0.65)), np.float32(np.sin(0.65))
-    d2 = remap(span.detail_tiles[1], (cr * gx - sr * gy) / (dres * np.float32(1.37)),
-               (sr * gx + cr * gy) / (dres * np.float32(1.37)), wrap=True)
+    d2 = remap(
+        span.detail_tiles[1],
+        (cr * gx - sr * gy) / (dres * np.float32(1.37)),
+        (sr * gx + cr * gy) / (dres * np.float32(1.37)),
+        wrap=True,
+    )
     detail = 1.0 + (ground[..., 3] / 255.0) * (0.6 * d1 + 0.5 * d2)
     img = ground[..., :3] * np.clip(detail, 0.2, 2.0)[..., None]
     del gx, gy, d1, d2, detail, ground
@@ -596,10 +646,17 @@ def render_image(span: SyntheticSpan, view: SceneImage, rng: np.random.Generator
             if not np.isfinite(uv).all() or (depth <= 0).any():
                 continue
             width = max(1, round(m.width_m * f / float(depth.mean())))
-            cv2.polylines(tower_alpha, [np.round((uv - 0.5) * 16).astype(np.int32)], False, 255,
-                          width, cv2.LINE_AA, 4)
+            cv2.polylines(
+                tower_alpha,
+                [np.round((uv - 0.5) * 16).astype(np.int32)],
+                False,
+                255,
+                width,
+                cv2.LINE_AA,
+                4,
+            )
     a = tower_alpha.astype(np.float32)[..., None] / 255.0
-    img = img * (1 - a) + np.float32([158, 160, 158]) * a
+    img = img * (1 - a) + np.array([158, 160, 158], np.float32) * a
 
     # Wires with exact sub-pixel coverage; the brightness drifts slowly along each wire.
     for kind, colour in (("conductor", (188, 190, 186)), ("shield", (122, 124, 122))):
@@ -611,18 +668,19 @@ def render_image(span: SyntheticSpan, view: SceneImage, rng: np.random.Generator
             n = int(wire.length_m / (0.4 * gsd_wire)) + 2
             s = np.linspace(0.0, wire.length_m, n)
             uv, depth, _ = view.project(wire.points(s))
-            width = wire.diameter_m * f / np.maximum(depth, 1e-6)
+            width_px = wire.diameter_m * f / np.maximum(depth, 1e-6)
             shimmer = 0.85 + 0.15 * np.sin(s / 7.0 + wire.wire_id)
-            draw_thin_polyline(alpha, uv, width, shimmer)
+            draw_thin_polyline(alpha, uv, width_px, shimmer)
         a = alpha[..., None]
-        img = img * (1 - a) + np.float32(colour) * a
+        img = img * (1 - a) + np.array(colour, np.float32) * a
 
     # Camera: vignetting, optics blur, shot and read noise; JPEG is applied when saving.
     h, w = img.shape[:2]
     r2 = ((np.arange(w, dtype=np.float32) - w / 2) ** 2)[None, :] + (
-        (np.arange(h, dtype=np.float32) - h / 2) ** 2)[:, None]
+        (np.arange(h, dtype=np.float32) - h / 2) ** 2
+    )[:, None]
     img *= (1.0 - 0.18 * r2 / np.float32((w / 2) ** 2 + (h / 2) ** 2))[..., None]
-    img = cv2.GaussianBlur(img, (0, 0), 0.55)
+    img = np.asarray(cv2.GaussianBlur(img, (0, 0), 0.55), np.float32)
     noise = rng.standard_normal(img.shape, dtype=np.float32)
     img += noise * np.sqrt(1.5 + 0.04 * np.clip(img, 0, None))
     return np.clip(img + 0.5, 0, 255).astype(np.uint8)
@@ -631,7 +689,9 @@ def render_image(span: SyntheticSpan, view: SceneImage, rng: np.random.Generator
 # ---------------------------------------------------------------- files
 
 
-def _gps_exif(lat: float, lon: float, alt: float, index: int, camera: pycolmap.Camera) -> Image.Exif:
+def _gps_exif(
+    lat: float, lon: float, alt: float, index: int, camera: pycolmap.Camera
+) -> Image.Exif:
     def dms(v: float) -> tuple[float, float, float]:
         v = abs(v)
         d = int(v)
@@ -702,8 +762,12 @@ def _sparse_points(
 
 
 def build_reconstruction(
-    camera: pycolmap.Camera, views: list[SceneImage], pts_in_world: F64, rgb: npt.NDArray[np.uint8],
-    keypoint_noise_px: float = 0.0, rng: np.random.Generator | None = None,
+    camera: pycolmap.Camera,
+    views: list[SceneImage],
+    pts_in_world: F64,
+    rgb: npt.NDArray[np.uint8],
+    keypoint_noise_px: float = 0.0,
+    rng: np.random.Generator | None = None,
     observe_with: list[SceneImage] | None = None,
 ) -> pycolmap.Reconstruction:
     """A COLMAP model of ``views`` with the points and their tracks.
@@ -720,35 +784,54 @@ def build_reconstruction(
     for view, obs_view in zip(views, observe_with, strict=True):
         uv, _, ok = obs_view.project(pts_in_world)
         idx = np.flatnonzero(ok)
-        uv_obs = uv[idx] + rng.normal(0, keypoint_noise_px, (len(idx), 2)) if keypoint_noise_px else uv[idx]
+        uv_obs = (
+            uv[idx] + rng.normal(0, keypoint_noise_px, (len(idx), 2))
+            if keypoint_noise_px
+            else uv[idx]
+        )
         image = pycolmap.Image(name=view.name, camera_id=camera.camera_id, image_id=view.image_id)
         image.points2D = pycolmap.Point2DList([pycolmap.Point2D(p) for p in uv_obs])
         pose = pycolmap.Rigid3d(pycolmap.Rotation3d(view.rot_cam_from_world), view.t_cam_from_world)
         rec.add_image_with_trivial_frame(image, pose)
         for k, j in enumerate(idx):
             tracks[j].add_element(view.image_id, k)
-    for j, track in enumerate(tracks):
+    for jp, track in enumerate(tracks):
         if track.length() >= 2:
-            rec.add_point3D(pts_in_world[j], track, rgb[j])
+            rec.add_point3D(pts_in_world[jp], track, rgb[jp])
     rec.update_point_3d_errors()
     return rec
 
 
-def _perturbed_views(span: SyntheticSpan, rng: np.random.Generator) -> tuple[pycolmap.Camera, list[SceneImage]]:
+def _perturbed_views(
+    span: SyntheticSpan, rng: np.random.Generator
+) -> tuple[pycolmap.Camera, list[SceneImage]]:
     """Camera and poses as a bundle adjustment leaves them: small, realistic errors."""
     params = np.array(span.camera.params, dtype=np.float64)
     params[0:2] *= 1 + rng.normal(0, 2e-4)
     params[2:4] += rng.normal(0, 0.3 * span.options.scale, 2)
     params[4:6] += rng.normal(0, 1e-4, 2)
-    camera = pycolmap.Camera(model="OPENCV", width=span.camera.width, height=span.camera.height,
-                             params=params.tolist(), camera_id=1)
+    camera = pycolmap.Camera(
+        model="OPENCV",
+        width=span.camera.width,
+        height=span.camera.height,
+        params=params.tolist(),
+        camera_id=1,
+    )
     views = []
     for v in span.views:
         drot, _ = cv2.Rodrigues(rng.normal(0, np.deg2rad(0.004), 3))
         rot = drot @ v.rot_cam_from_world
         center = v.center_in_world + rng.normal(0, 0.01, 3)
-        views.append(SceneImage(image_id=v.image_id, name=v.name, path=v.path, camera=camera,
-                                rot_cam_from_world=rot, t_cam_from_world=-rot @ center))
+        views.append(
+            SceneImage(
+                image_id=v.image_id,
+                name=v.name,
+                path=v.path,
+                camera=camera,
+                rot_cam_from_world=rot,
+                t_cam_from_world=-rot @ center,
+            )
+        )
     return camera, views
 
 
@@ -761,7 +844,7 @@ def _retriangulate(rec: pycolmap.Reconstruction) -> None:
             cam = rec.camera(image.camera_id)
             pose = image.cam_from_world()
             rmat = pose.rotation.matrix()
-            xy = cam.cam_from_img(np.asarray(image.points2D[el.point2D_idx].xy).reshape(1, 2))[0]
+            xy = cam_from_img(cam, np.asarray(image.points2D[el.point2D_idx].xy).reshape(1, 2))[0]
             d = rmat.T @ np.array([xy[0], xy[1], 1.0])
             d /= np.linalg.norm(d)
             c = -rmat.T @ pose.translation
@@ -785,9 +868,14 @@ class SyntheticSpanPaths:
 def span_paths(root: Path | str) -> SyntheticSpanPaths:
     root = Path(root)
     sparse = root / "sparse" / "0"
-    return SyntheticSpanPaths(root, root / "images", root / "sparse_gt",
-                              sparse if sparse.is_dir() else None,
-                              root / "truth" / "wires.json", root / "truth" / "terrain.npz")
+    return SyntheticSpanPaths(
+        root,
+        root / "images",
+        root / "sparse_gt",
+        sparse if sparse.is_dir() else None,
+        root / "truth" / "wires.json",
+        root / "truth" / "terrain.npz",
+    )
 
 
 def load_true_wires(path: Path | str) -> list[TrueWire]:
@@ -795,7 +883,9 @@ def load_true_wires(path: Path | str) -> list[TrueWire]:
         return [TrueWire.from_json(w) for w in json.load(f)["wires"]]
 
 
-def generate_span(output_path: Path | str, options: SyntheticSpanOptions | None = None) -> SyntheticSpanPaths:
+def generate_span(
+    output_path: Path | str, options: SyntheticSpanOptions | None = None
+) -> SyntheticSpanPaths:
     """Render a synthetic span and write it to ``output_path`` (atomically, as one folder).
 
     Returns:
@@ -815,14 +905,24 @@ def generate_span(output_path: Path | str, options: SyntheticSpanOptions | None 
         gps = pycolmap.GPSTransform(pycolmap.GPSTransformEllipsoid.WGS84)
         rng_gps = np.random.default_rng(opts.seed + 1)
         t1 = time.perf_counter()
-        for k, view in enumerate(tqdm(span.views, desc="render", unit="img",
-                                      disable=not opts.show_progress)):
+        for k, view in enumerate(
+            tqdm(span.views, desc="render", unit="img", disable=not opts.show_progress)
+        ):
             img = render_image(span, view, np.random.default_rng([opts.seed, k]))
-            noise = rng_gps.normal(0, [opts.gps_sigma_horizontal_m] * 2 + [opts.gps_sigma_vertical_m])
-            lla = gps.enu_to_ellipsoid((view.center_in_world + noise).reshape(1, 3),
-                                       opts.origin_lat_deg, opts.origin_lon_deg, opts.origin_alt_m)[0]
-            Image.fromarray(img).save(tmp / "images" / view.name, quality=opts.jpeg_quality,
-                                      exif=_gps_exif(lla[0], lla[1], lla[2], k, span.camera))
+            noise = rng_gps.normal(
+                0, [opts.gps_sigma_horizontal_m] * 2 + [opts.gps_sigma_vertical_m]
+            )
+            lla = gps.enu_to_ellipsoid(
+                (view.center_in_world + noise).reshape(1, 3),
+                opts.origin_lat_deg,
+                opts.origin_lon_deg,
+                opts.origin_alt_m,
+            )[0]
+            Image.fromarray(img).save(
+                tmp / "images" / view.name,
+                quality=opts.jpeg_quality,
+                exif=_gps_exif(lla[0], lla[1], lla[2], k, span.camera),
+            )
         t_render = time.perf_counter() - t1
         rng = np.random.default_rng(opts.seed + 2)
         pts, rgb = _sparse_points(span, rng)
@@ -830,34 +930,62 @@ def generate_span(output_path: Path | str, options: SyntheticSpanOptions | None 
         build_reconstruction(span.camera, span.views, pts, rgb).write_binary(tmp / "sparse_gt")
         if opts.write_perturbed_model:
             camera, views = _perturbed_views(span, rng)
-            rec = build_reconstruction(camera, views, pts, rgb, keypoint_noise_px=0.3, rng=rng,
-                                       observe_with=span.views)
+            rec = build_reconstruction(
+                camera, views, pts, rgb, keypoint_noise_px=0.3, rng=rng, observe_with=span.views
+            )
             _retriangulate(rec)
             (tmp / "sparse" / "0").mkdir(parents=True)
             rec.write_binary(tmp / "sparse" / "0")
         (tmp / "truth").mkdir()
         span.terrain.save(tmp / "truth" / "terrain.npz")
         with open(tmp / "truth" / "wires.json", "w") as f:
-            json.dump({"frame": "local ENU, metres",
-                       "origin_wgs84": [opts.origin_lat_deg, opts.origin_lon_deg, opts.origin_alt_m],
-                       "wires": [w.to_json() for w in span.wires]}, f)
+            json.dump(
+                {
+                    "frame": "local ENU, metres",
+                    "origin_wgs84": [opts.origin_lat_deg, opts.origin_lon_deg, opts.origin_alt_m],
+                    "wires": [w.to_json() for w in span.wires],
+                },
+                f,
+            )
         with open(tmp / "truth" / "scene.json", "w") as f:
-            json.dump({"options": {k: (str(v) if isinstance(v, StrEnum) else v)
-                                   for k, v in asdict(opts).items()},
-                       "camera": {"model": "OPENCV", "width": span.camera.width,
-                                  "height": span.camera.height, "params": list(span.camera.params)},
-                       "sun_in_world": span.sun_in_world.tolist(),
-                       "tower_bases": [[float(c) for c in m[0].p] for m in span.towers],
-                       "num_images": len(span.views),
-                       "timing_s": {"build": t_build, "render": t_render,
-                                    "render_per_image": t_render / len(span.views)}}, f, indent=1)
+            json.dump(
+                {
+                    "options": {
+                        k: (str(v) if isinstance(v, StrEnum) else v)
+                        for k, v in asdict(opts).items()
+                    },
+                    "camera": {
+                        "model": "OPENCV",
+                        "width": span.camera.width,
+                        "height": span.camera.height,
+                        "params": list(span.camera.params),
+                    },
+                    "sun_in_world": span.sun_in_world.tolist(),
+                    "tower_bases": [[float(c) for c in m[0].p] for m in span.towers],
+                    "num_images": len(span.views),
+                    "timing_s": {
+                        "build": t_build,
+                        "render": t_render,
+                        "render_per_image": t_render / len(span.views),
+                    },
+                },
+                f,
+                indent=1,
+            )
         if output_path.exists():
             output_path.rmdir()
         os.replace(tmp, output_path)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
-    logger.info("synthetic span: %d images of %dx%d px, %d wires, rendered in %.1f s (%.2f s/image) → %s",
-                len(span.views), span.camera.width, span.camera.height, len(span.wires), t_render,
-                t_render / len(span.views), output_path)
+    logger.info(
+        "synthetic span: %d images of %dx%d px, %d wires, rendered in %.1f s (%.2f s/image) → %s",
+        len(span.views),
+        span.camera.width,
+        span.camera.height,
+        len(span.wires),
+        t_render,
+        t_render / len(span.views),
+        output_path,
+    )
     return span_paths(output_path)
