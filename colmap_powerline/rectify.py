@@ -28,9 +28,6 @@ F32 = npt.NDArray[np.float32]
 
 @dataclass(kw_only=True)
 class RectifyOptions:
-    max_wire_height: float = (
-        60.0  # highest wire above the ground (model units, metres when georeferenced)
-    )
     depth_margin: float = 0.05  # relative margin on the scene's depth range
     resolution_scale: float = 1.0  # rectified focal length relative to the mean of the two cameras
     max_side_px: int = 8000  # refuse pairs whose rectified images would be larger
@@ -145,9 +142,14 @@ class RectifiedPair:
 
 
 def _scene_depth_range(
-    scene: Scene, rect_from_world: F64, left: SceneImage, right: SceneImage, options: RectifyOptions
+    scene: Scene,
+    rect_from_world: F64,
+    left: SceneImage,
+    right: SceneImage,
+    max_wire_height: float,
+    options: RectifyOptions,
 ) -> tuple[float, float]:
-    """Depth range (along the rectified z axis) of the ground and of wires above it, seen by both."""
+    """Depth range (along the rectified z axis) of the ground and of wires above it."""
     pts = scene.pts_in_world
     seen = left.project(pts)[2] & right.project(pts)[2]
     if seen.sum() < 3:
@@ -159,7 +161,7 @@ def _scene_depth_range(
     ground = pts[seen]
     ground = ground.copy()
     ground[:, 2] = scene.ground_height(ground[:, :2])
-    top = ground + np.array([0.0, 0.0, options.max_wire_height])
+    top = ground + np.array([0.0, 0.0, max_wire_height])
     depths = [(p - left.center_in_world) @ rect_from_world[2] for p in (ground, top)]
     near = float(np.min(np.r_[depths[0], depths[1]]))
     far = float(np.max(np.r_[depths[0], depths[1]]))
@@ -168,7 +170,11 @@ def _scene_depth_range(
 
 
 def rectify_pair(
-    scene: Scene, left: SceneImage, right: SceneImage, options: RectifyOptions | None = None
+    scene: Scene,
+    left: SceneImage,
+    right: SceneImage,
+    options: RectifyOptions | None = None,
+    max_wire_height: float = 60.0,
 ) -> RectifiedPair:
     """Build the epipolar geometry of a pair (paper Eq. 1 as one common rotation).
 
@@ -176,6 +182,9 @@ def rectify_pair(
         scene: the oriented scene (for the depth range from its sparse points).
         left: the image whose camera centre is the origin of the rectified frame.
         right: the other image; the rectified x axis points from ``left`` to ``right``.
+        options: resampling options.
+        max_wire_height: highest wire above the ground (model units): with the ground from
+            the sparse points it bounds the depth range, hence the crop.
 
     Returns:
         A :class:`RectifiedPair`; call ``rectify_image`` to resample the images.
@@ -193,7 +202,7 @@ def rectify_pair(
     z_axis /= np.linalg.norm(z_axis)
     y_axis = np.cross(z_axis, x_axis)
     rect_from_world = np.stack([x_axis, y_axis, z_axis])
-    near, far = _scene_depth_range(scene, rect_from_world, left, right, options)
+    near, far = _scene_depth_range(scene, rect_from_world, left, right, max_wire_height, options)
 
     focal = options.resolution_scale * 0.5 * (left.focal_px + right.focal_px)
     # Border of each image in normalised rectified coordinates.

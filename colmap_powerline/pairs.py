@@ -1,0 +1,324 @@
+"""Pair selection: find where the wires run, then pick image pairs whose baseline crosses them.
+
+The paper picked its epipolar pairs by hand. Here the wires' horizontal direction and
+corridor are estimated from 2D line evidence in a few images, turned into the world frame
+with the poses (or the direction is given by the user), and every overlapping pair is
+scored: crossing angle between baseline and wires (90° best, parallel useless), base/height
+ratio, and how much of the wire corridor both images cover. The best few pairs that
+together cover the span are kept.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+import numpy.typing as npt
+
+from .errors import InputError
+from .scene import Scene, SceneImage
+
+logger = logging.getLogger(__name__)
+
+F64 = npt.NDArray[np.float64]
+
+
+@dataclass(kw_only=True)
+class PairsOptions:
+    wire_azimuth_deg: float | None = None  # the wires' direction, clockwise from +y; None: estimate
+    wire_height: float = (
+        20.0  # typical wire height above ground for the corridor estimate (model units)
+    )
+    num_direction_images: int = 6  # images used to estimate the direction and corridor
+    analysis_width_px: int = 800  # those images are analysed at about this width
+    scan_step_deg: float = 3.0  # orientation scan step
+    template_length_frac: float = 0.04  # line template length as a share of the analysis width
+    corridor_margin: float = 15.0  # added to each side of the estimated corridor (model units)
+    min_crossing_deg: float = (
+        45.0  # pairs whose baseline is closer to the wire direction are useless
+    )
+    min_base_height: float = 0.15  # base/height ratio range of useful pairs
+    max_base_height: float = 1.6
+    target_base_height: float = 0.7  # ratios beyond this gain no score
+    max_pairs: int = 4  # pairs used at most
+    pairs_per_point: int = 2  # how many pairs should cover each part of the corridor
+    border_margin_frac: float = 0.05  # corridor points this close to an image border do not count
+
+
+@dataclass(frozen=True)
+class WireCorridor:
+    """Where the wires are, in plan: a band along ``azimuth_deg`` through ``centre_xy``."""
+
+    azimuth_deg: float
+    centre_xy: F64  # (2,) a point on the corridor's centre line
+    half_width: float  # model units
+    s_range: tuple[float, float]  # extent along the line from centre_xy
+    height: float  # absolute height used for the corridor points (ground + wire_height)
+    from_images: bool  # False when the direction was given by the user
+    decoded: tuple[Path, ...] = ()  # the images decoded for the estimate
+
+    @property
+    def direction_xy(self) -> F64:
+        az = np.deg2rad(self.azimuth_deg)
+        return np.array([np.sin(az), np.cos(az)])
+
+    @property
+    def normal_xy(self) -> F64:
+        d = self.direction_xy
+        return np.array([d[1], -d[0]])
+
+    def centreline(self, step: float = 1.0) -> F64:
+        """(N, 3) points along the corridor's centre line at the corridor height."""
+        s = np.arange(self.s_range[0], self.s_range[1] + 1e-9, step)
+        xy = self.centre_xy + s[:, None] * self.direction_xy
+        return np.c_[xy, np.full(len(s), self.height)]
+
+
+@dataclass(frozen=True)
+class ImagePair:
+    left: SceneImage
+    right: SceneImage
+    crossing_deg: float  # angle between the baseline and the wires in plan (90 = perpendicular)
+    base_height: float  # baseline / height above the ground
+    coverage: float  # length of the corridor both images see (model units)
+    score: float
+
+    def __str__(self) -> str:
+        return (
+            f"{self.left.name}|{self.right.name}: crossing {self.crossing_deg:.0f}°, "
+            f"B/H {self.base_height:.2f}, corridor {self.coverage:.0f}, score {self.score:.1f}"
+        )
+
+
+def _oriented_response(
+    gray: npt.NDArray[np.float32], angle_deg: float, length_px: int
+) -> tuple[npt.NDArray[np.float32], npt.NDArray[np.float64]]:
+    """|line template| response with lines of direction ``angle_deg`` turned vertical.
+
+    Only the central disc (which stays inside the image at every rotation) is kept, so all
+    directions are judged on the same pixels. Returns the (H, W) response in the rotated
+    frame (0 outside the disc) and the 2x3 affine transform from the image to that frame.
+    """
+    h, w = gray.shape
+    rot = cv2.getRotationMatrix2D((w / 2, h / 2), angle_deg - 90.0, 1.0)
+    img = cv2.warpAffine(gray, rot, (w, h), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    across = 2 * img - np.roll(img, 1, axis=1) - np.roll(img, -1, axis=1)
+    resp = np.abs(cv2.blur(across, (1, length_px)))
+    yy, xx = np.ogrid[:h, :w]
+    radius = min(h, w) / 2 - length_px
+    resp[(xx - w / 2) ** 2 + (yy - h / 2) ** 2 > radius**2] = 0
+    return resp, rot
+
+
+def _line_energy(gray: npt.NDArray[np.float32], angle_deg: float, length_px: int) -> float:
+    """How strongly long thin lines of one image direction stand out (top 0.2 % response)."""
+    resp, _ = _oriented_response(gray, angle_deg, length_px)
+    flat = resp.ravel()
+    k = max(flat.size // 500, 10)
+    return float(np.partition(flat, flat.size - k)[-k:].mean())
+
+
+def _image_direction(gray: npt.NDArray[np.float32], options: PairsOptions) -> tuple[float, float]:
+    """The dominant thin-line direction of an image (degrees, 0 = +x, 90 = down) and its contrast
+    against the median direction."""
+    length = max(int(options.template_length_frac * gray.shape[1]), 9)
+    angles = np.arange(0.0, 180.0, options.scan_step_deg)
+    energy = np.array([_line_energy(gray, a, length) for a in angles])
+    best = angles[int(np.argmax(energy))]
+    fine = best + np.arange(-options.scan_step_deg, options.scan_step_deg + 1e-9, 0.5)
+    fine_energy = np.array([_line_energy(gray, a, length) for a in fine])
+    return float(fine[int(np.argmax(fine_energy))] % 180.0), float(
+        energy.max() / max(float(np.median(energy)), 1e-9)
+    )
+
+
+def _to_plane(view: SceneImage, uv: F64, z: float) -> F64:
+    """(N, 2) pixels → (N, 2) plan positions where their rays cross the height ``z``."""
+    rays = view.rays_in_world(uv)
+    c = view.center_in_world
+    t = (z - c[2]) / np.where(np.abs(rays[:, 2]) > 1e-9, rays[:, 2], -1e-9)
+    return c[:2] + t[:, None] * rays[:, :2]
+
+
+def _pick_spread(scene: Scene, n: int) -> list[SceneImage]:
+    """Up to ``n`` images spread over the flight (farthest-point sampling of centres)."""
+    centres = scene.centers_in_world[:, :2]
+    chosen = [int(np.argmin(np.linalg.norm(centres - centres.mean(axis=0), axis=1)))]
+    dist = np.linalg.norm(centres - centres[chosen[0]], axis=1)
+    while len(chosen) < min(n, len(centres)):
+        k = int(np.argmax(dist))
+        chosen.append(k)
+        dist = np.minimum(dist, np.linalg.norm(centres - centres[k], axis=1))
+    return [scene.images[k] for k in chosen]
+
+
+def estimate_corridor(scene: Scene, options: PairsOptions | None = None) -> WireCorridor:
+    """Estimate the wires' direction (unless given) and their corridor from 2D line evidence."""
+    options = options or PairsOptions()
+    ground_z = float(np.median(scene.ground_height(scene.centers_in_world[:, :2])))
+    height = ground_z + options.wire_height
+    azimuths, weights, samples = [], [], []
+    views = _pick_spread(scene, options.num_direction_images)
+    for view in views:
+        raw = cv2.imread(str(view.path), cv2.IMREAD_GRAYSCALE)
+        if raw is None:
+            raise InputError(f"{view.path}: cannot decode the image")
+        factor = max(1, int(round(raw.shape[1] / options.analysis_width_px)))
+        gray = cv2.resize(
+            raw, (raw.shape[1] // factor, raw.shape[0] // factor), interpolation=cv2.INTER_AREA
+        ).astype(np.float32)
+        angle, contrast = _image_direction(gray, options)
+        # Turn the image direction at the image centre into a world azimuth.
+        c_px = np.array([view.width / 2, view.height / 2])
+        step = 0.05 * view.width * np.array([np.cos(np.deg2rad(angle)), np.sin(np.deg2rad(angle))])
+        xy = _to_plane(view, np.stack([c_px - step, c_px + step]), height)
+        d = xy[1] - xy[0]
+        azimuths.append(np.rad2deg(np.arctan2(d[0], d[1])) % 180.0)
+        weights.append(contrast)
+        # Strong line pixels at that angle → plan positions of the wires (height approximate).
+        length = max(int(options.template_length_frac * gray.shape[1]), 9)
+        resp, rot = _oriented_response(gray, angle, length)
+        thr = np.quantile(resp, 0.998)
+        ys, xs = np.nonzero(resp >= thr)
+        inv = cv2.invertAffineTransform(rot)
+        pts = np.c_[xs, ys, np.ones(len(xs))] @ inv.T
+        uv = (pts + 0.5) * factor
+        samples.append(_to_plane(view, uv, height))
+    doubled = np.deg2rad(2 * np.asarray(azimuths))
+    w = np.asarray(weights)
+    if options.wire_azimuth_deg is not None:
+        azimuth = float(options.wire_azimuth_deg) % 180.0
+    else:
+        azimuth = float(
+            np.rad2deg(np.arctan2((w * np.sin(doubled)).sum(), (w * np.cos(doubled)).sum()))
+            / 2
+            % 180.0
+        )
+        spread = np.abs((np.asarray(azimuths) - azimuth + 90) % 180 - 90)
+        if np.median(spread) > 10:
+            raise InputError(
+                f"{scene.image_path}: the images do not agree on a wire direction "
+                f"(per-image azimuths {np.round(azimuths, 1).tolist()} deg); "
+                "give it with --wire_azimuth_deg"
+            )
+    az = np.deg2rad(azimuth)
+    direction, normal = np.array([np.sin(az), np.cos(az)]), np.array([np.cos(az), -np.sin(az)])
+    xy = np.concatenate(samples)
+    c = xy @ normal
+    s = xy @ direction
+    # The wires are the densest band of line pixels across the line direction.
+    bins = np.arange(c.min() - 1, c.max() + 2, 1.0)
+    hist, _ = np.histogram(c, bins)
+    hist = np.convolve(hist, np.ones(5) / 5, mode="same")
+    peak = int(np.argmax(hist))
+    lo = hi = peak
+    while lo > 0 and hist[lo - 1] > 0.2 * hist[peak]:
+        lo -= 1
+    while hi < len(hist) - 1 and hist[hi + 1] > 0.2 * hist[peak]:
+        hi += 1
+    c_lo, c_hi = bins[lo], bins[hi + 1]
+    in_band = (c >= c_lo) & (c <= c_hi)
+    s_lo, s_hi = np.quantile(s[in_band], [0.01, 0.99])
+    c_mid, s_mid = 0.5 * (c_lo + c_hi), 0.5 * (s_lo + s_hi)
+    corridor = WireCorridor(
+        azimuth_deg=azimuth,
+        centre_xy=c_mid * normal + s_mid * direction,
+        half_width=0.5 * (c_hi - c_lo) + options.corridor_margin,
+        s_range=(float(s_lo - s_mid), float(s_hi - s_mid)),
+        height=height,
+        from_images=options.wire_azimuth_deg is None,
+        decoded=tuple(v.path for v in views),
+    )
+    logger.info(
+        "wire corridor: azimuth %.1f° (%s; per image %s), %.0f wide, %.0f long",
+        azimuth,
+        "estimated" if corridor.from_images else "given",
+        np.round(azimuths, 1).tolist(),
+        2 * corridor.half_width,
+        s_hi - s_lo,
+    )
+    return corridor
+
+
+def select_pairs(
+    scene: Scene, corridor: WireCorridor, options: PairsOptions | None = None
+) -> list[ImagePair]:
+    """Score every pair and pick the best few that together cover the wire corridor."""
+    options = options or PairsOptions()
+    line = corridor.centreline(1.0)
+    seen = np.zeros((len(scene.images), len(line)), bool)
+    m = options.border_margin_frac
+    for i, view in enumerate(scene.images):
+        uv, _, inside = view.project(line)
+        with np.errstate(invalid="ignore"):
+            seen[i] = inside & (
+                (uv[:, 0] > m * view.width)
+                & (uv[:, 0] < (1 - m) * view.width)
+                & (uv[:, 1] > m * view.height)
+                & (uv[:, 1] < (1 - m) * view.height)
+            )
+    centres = scene.centers_in_world
+    ground = scene.ground_height(centres[:, :2])
+    direction = corridor.direction_xy
+    candidates: list[tuple[ImagePair, npt.NDArray[np.bool_]]] = []
+    best_crossing = 0.0
+    for i in range(len(scene.images)):
+        for j in range(i + 1, len(scene.images)):
+            common = seen[i] & seen[j]
+            if common.sum() < 2:
+                continue
+            base = centres[j] - centres[i]
+            b_xy = float(np.linalg.norm(base[:2]))
+            if b_xy < 1e-9:
+                continue
+            cos_angle = abs(float(base[:2] @ direction)) / b_xy
+            crossing = float(np.rad2deg(np.arccos(np.clip(cos_angle, 0, 1))))
+            best_crossing = max(best_crossing, crossing)
+            height = float(np.mean(centres[[i, j], 2] - ground[[i, j]]))
+            bh = float(np.linalg.norm(base)) / max(height, 1e-9)
+            if crossing < options.min_crossing_deg:
+                continue
+            if not options.min_base_height <= bh <= options.max_base_height:
+                continue
+            coverage = float(common.sum())
+            score = (
+                coverage * np.sin(np.deg2rad(crossing)) * min(bh / options.target_base_height, 1.0)
+            )
+            pair = ImagePair(scene.images[i], scene.images[j], crossing, bh, coverage, score)
+            candidates.append((pair, common))
+    if not candidates:
+        raise InputError(
+            f"{scene.model_path}: no image pair crosses the wires (best crossing angle "
+            f"{best_crossing:.0f}° < {options.min_crossing_deg:.0f}° or base/height out of "
+            f"[{options.min_base_height}, {options.max_base_height}]); the flight needs images "
+            "side by side across the line (a second strip, or strips across the line)"
+        )
+    count = np.zeros(len(line))
+    chosen: list[ImagePair] = []
+    while len(chosen) < options.max_pairs:
+        need = np.clip(options.pairs_per_point - count, 0, None) / options.pairs_per_point
+        gains = [
+            p.score / max(p.coverage, 1.0) * float((need * common).sum())
+            for p, common in candidates
+        ]
+        k = int(np.argmax(gains))
+        if gains[k] <= 0:
+            break
+        pair, common = candidates.pop(k)
+        chosen.append(pair)
+        count += common
+        if not candidates:
+            break
+    covered = float((count > 0).mean())
+    for p in chosen:
+        logger.info("pair %s", p)
+    logger.info(
+        "pairs: %d chosen of %d crossing candidates; they cover %.0f %% of the corridor",
+        len(chosen),
+        len(candidates) + len(chosen),
+        100 * covered,
+    )
+    return chosen

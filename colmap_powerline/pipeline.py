@@ -1,0 +1,243 @@
+"""The whole method, composed from its stages: model + images → wires.
+
+``reconstruct`` only chains the stage functions; each stage can be called on its own.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import logging
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+import numpy.typing as npt
+from tqdm import tqdm
+
+from .detect import DetectOptions, detect_wires
+from .errors import InputError
+from .export import export_results
+from .pairs import ImagePair, PairsOptions, WireCorridor, estimate_corridor, select_pairs
+from .rectify import RectifiedPair, RectifyOptions, rectify_pair
+from .scene import Scene, load_scene
+from .triangulate import Primitives, TriangulateOptions, triangulate_pair, wire_centres
+from .verify import VerifiedPoints, VerifyOptions, read_image, verify_primitives
+from .wires import FittedWire, WiresOptions, split_wires
+
+logger = logging.getLogger(__name__)
+
+
+@dataclass(kw_only=True)
+class ReconstructionOptions:
+    pairs: PairsOptions = field(default_factory=PairsOptions)
+    rectify: RectifyOptions = field(default_factory=RectifyOptions)
+    detect: DetectOptions = field(default_factory=DetectOptions)
+    triangulate: TriangulateOptions = field(default_factory=TriangulateOptions)
+    verify: VerifyOptions = field(default_factory=VerifyOptions)
+    wires: WiresOptions = field(default_factory=WiresOptions)
+    show_progress: bool = True  # progress bars on the loops over pairs and images
+    debug: bool = False  # also write primitives.ply (every candidate before verification)
+
+
+@dataclass(eq=False)
+class ReconstructionResult:
+    scene: Scene
+    corridor: WireCorridor
+    pairs: list[ImagePair]
+    primitives: list[Primitives]
+    verified: VerifiedPoints
+    wires: list[FittedWire]
+    labels: npt.NDArray[np.int64]  # (N,) wire id of each verified point, -1 for none
+    timings_s: dict[str, float]
+    decoded: list[Path]  # every image file decoded, in order (repeats included)
+    outputs: dict[str, Path] = field(default_factory=dict)
+
+
+def _direction_deg(uv: npt.NDArray[np.float64]) -> float:
+    d = uv[1] - uv[0]
+    return float(np.rad2deg(np.arctan2(d[1], d[0])) % 180.0)
+
+
+def _detect_rectified(
+    pair: RectifiedPair,
+    side: int,
+    image: np.ndarray,
+    corridor: WireCorridor,
+    options: DetectOptions,
+):
+    """Wire centres of one side of a rectified pair."""
+    rect, valid = pair.rectify_image(side, image)
+    centre = np.r_[corridor.centre_xy, corridor.height]
+    d = np.r_[corridor.direction_xy, 0.0]
+    uv, _ = pair.project(side, np.stack([centre - d, centre + d]))
+    wm = detect_wires(rect, _direction_deg(uv), options)
+    # The template sees the edge of the resampled footprint as a line: drop it.
+    border = options.template_length_px + 4
+    valid = cv2.erode(valid.astype(np.uint8), np.ones((border, border), np.uint8)).astype(bool)
+    return wire_centres(wm.mask & valid, wm.response), int(wm.mask.sum())
+
+
+def primitives_for_pairs(
+    scene: Scene, pairs: list[ImagePair], corridor: WireCorridor, options: ReconstructionOptions
+) -> tuple[list[Primitives], list[Path]]:
+    """Rectify, detect and triangulate every pair. Returns the primitives and images decoded."""
+    out: list[Primitives] = []
+    decoded: list[Path] = []
+    for k, p in enumerate(
+        tqdm(pairs, desc="pairs", unit="pair", disable=not options.show_progress)
+    ):
+        geom = rectify_pair(
+            scene, p.left, p.right, options.rectify, options.triangulate.max_wire_height
+        )
+        centres = []
+        for side, view in enumerate(geom.sides):
+            image = read_image(str(view.path))
+            decoded.append(view.path)
+            c, n_px = _detect_rectified(geom, side, image, corridor, options.detect)
+            centres.append(c)
+        prims = triangulate_pair(geom, scene, centres[0], centres[1], k, options.triangulate)
+        logger.info(
+            "pair %d %s|%s: %dx%d px rectified, %d + %d wire centres → %d primitives",
+            k,
+            p.left.name,
+            p.right.name,
+            geom.widths_px[0],
+            geom.height_px,
+            len(centres[0]),
+            len(centres[1]),
+            len(prims),
+        )
+        out.append(prims)
+    return out, decoded
+
+
+def reconstruct(
+    image_path: Path | str,
+    input_path: Path | str,
+    output_path: Path | str | None = None,
+    options: ReconstructionOptions | None = None,
+) -> ReconstructionResult:
+    """Reconstruct every wire of the span seen by a COLMAP model's images.
+
+    Args:
+        image_path: the image folder the model's image names are relative to.
+        input_path: the COLMAP sparse model (binary or text).
+        output_path: where to write wires.json, wires.ply, wire_points.ply (None: nothing).
+        options: the options of every stage.
+    """
+    options = options or ReconstructionOptions()
+    timings: dict[str, float] = {}
+    t0 = time.perf_counter()
+    scene = load_scene(input_path, image_path)
+    timings["scene"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    corridor = estimate_corridor(scene, options.pairs)
+    pairs = select_pairs(scene, corridor, options.pairs)
+    timings["pairs"] = time.perf_counter() - t0
+    decoded = list(corridor.decoded)
+
+    t0 = time.perf_counter()
+    primitives, n = primitives_for_pairs(scene, pairs, corridor, options)
+    decoded += n
+    timings["rectify_detect_triangulate"] = time.perf_counter() - t0
+    if sum(len(p) for p in primitives) == 0:
+        raise InputError(f"{image_path}: no wire was found in the chosen pairs")
+
+    t0 = time.perf_counter()
+    full_width = max(im.width for im in scene.images)
+    detect_opts = options.detect
+    tol = options.verify.tolerance_px
+
+    def wire_mask(image: np.ndarray, direction: float, crop: tuple[int, int, int, int]):
+        x0, y0, x1, y1 = crop
+        wm = detect_wires(
+            image[y0:y1, x0:x1],
+            direction,
+            dataclasses.replace(
+                detect_opts,
+                min_component_length_px=detect_opts.min_component_length_px
+                or detect_opts.default_min_length(full_width),
+            ),
+        )
+        return wm.dilated(tol)
+
+    verified = verify_primitives(
+        scene,
+        primitives,
+        [(p.left.name, p.right.name) for p in pairs],
+        wire_mask,
+        corridor.azimuth_deg,
+        options.verify,
+        options.show_progress,
+    )
+    decoded += verified.decoded
+    timings["verify"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    wires = split_wires(verified.pts_in_world, corridor.azimuth_deg, options.wires)
+    labels = np.full(len(verified), -1, np.int64)
+    for w in wires:
+        labels[w.point_indices] = w.wire_id
+    timings["wires"] = time.perf_counter() - t0
+    logger.info(
+        "wires: %d wires from %d verified points (%d assigned)",
+        len(wires),
+        len(verified),
+        int((labels >= 0).sum()),
+    )
+
+    result = ReconstructionResult(
+        scene, corridor, pairs, primitives, verified, wires, labels, timings, decoded
+    )
+    if output_path is not None:
+        t0 = time.perf_counter()
+        result.outputs = export_results(
+            Path(output_path),
+            wires=wires,
+            points=verified.pts_in_world,
+            labels=labels,
+            primitives=np.concatenate([p.pts_in_world for p in primitives])
+            if options.debug
+            else None,
+            metadata=_metadata(result, image_path, input_path, options),
+            ground_height=scene.ground_height,
+        )
+        timings["export"] = time.perf_counter() - t0
+    return result
+
+
+def _metadata(
+    result: ReconstructionResult,
+    image_path: Path | str,
+    input_path: Path | str,
+    options: ReconstructionOptions,
+) -> dict[str, Any]:
+    def plain(obj: Any) -> Any:
+        return json.loads(json.dumps(dataclasses.asdict(obj), default=str))
+
+    return {
+        "input_model": str(input_path),
+        "image_path": str(image_path),
+        "units": "model units (metres when the model is georeferenced)",
+        "wire_azimuth_deg": result.corridor.azimuth_deg,
+        "pairs": [
+            {
+                "left": p.left.name,
+                "right": p.right.name,
+                "crossing_deg": p.crossing_deg,
+                "base_height": p.base_height,
+                "score": p.score,
+            }
+            for p in result.pairs
+        ],
+        "num_primitives": int(sum(len(p) for p in result.primitives)),
+        "num_verified_points": len(result.verified),
+        "images_decoded": len(result.decoded),
+        "timings_s": result.timings_s,
+        "options": plain(options),
+    }

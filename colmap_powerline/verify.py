@@ -1,0 +1,140 @@
+"""Multi-view verification: keep a primitive only where the redundant images see a wire.
+
+Every primitive is projected into every other registered image that sees it; it survives
+when it lands on (or within a tolerance of) extracted wire pixels in all of them (the
+paper) or in enough of them (options). Each image is decoded and searched for wires once,
+only inside the region where primitives project.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+import numpy.typing as npt
+from tqdm import tqdm
+
+from .scene import Scene, SceneImage
+from .triangulate import Primitives
+
+logger = logging.getLogger(__name__)
+
+F64 = npt.NDArray[np.float64]
+
+
+@dataclass(kw_only=True)
+class VerifyOptions:
+    tolerance_px: float = 1.5  # a projection this close to a wire pixel is a hit (px)
+    min_views: int = 2  # a primitive must be seen by at least this many redundant images
+    min_hit_ratio: float = 1.0  # share of the redundant images that must see a wire (paper: 1)
+    margin_px: int = 24  # wire search region: bounding box of the projections plus this margin
+
+
+@dataclass(frozen=True, eq=False)
+class VerifiedPoints:
+    """Primitives that passed verification."""
+
+    pts_in_world: F64  # (N, 3)
+    hits: npt.NDArray[np.int32]  # (N,) redundant images in which the point lies on a wire
+    views: npt.NDArray[np.int32]  # (N,) redundant images that see the point
+    pair_index: npt.NDArray[np.int32]  # (N,) the pair that produced it
+    decoded: list[Path]  # the images decoded for the verification
+
+    def __len__(self) -> int:
+        return len(self.pts_in_world)
+
+
+# A wire detector for one image: (image, direction_deg, crop (x0, y0, x1, y1)) → (H, W) bool
+# mask of the crop, already grown by the tolerance.
+WireMaskFn = Callable[[np.ndarray, float, tuple[int, int, int, int]], npt.NDArray[np.bool_]]
+
+
+def image_wire_direction_deg(view: SceneImage, pt_in_world: F64, azimuth_deg: float) -> float:
+    """Direction (degrees, 0 = +x, 90 = +y i.e. down) of a horizontal line of the given
+    azimuth through ``pt_in_world`` in the image."""
+    az = np.deg2rad(azimuth_deg)
+    d = np.array([np.sin(az), np.cos(az), 0.0])
+    uv, _, _ = view.project(np.stack([pt_in_world - d, pt_in_world + d]))
+    du = uv[1] - uv[0]
+    return float(np.rad2deg(np.arctan2(du[1], du[0])) % 180.0)
+
+
+def read_image(path: str) -> np.ndarray:
+    """Decode an image as RGB uint8, or raise a one-line error naming the file."""
+    from .errors import InputError
+
+    img = cv2.imread(path, cv2.IMREAD_COLOR)
+    if img is None:
+        raise InputError(f"{path}: cannot decode the image")
+    return cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
+
+
+def verify_primitives(
+    scene: Scene,
+    primitives: Sequence[Primitives],
+    pair_images: Sequence[tuple[str, str]],
+    wire_mask: WireMaskFn,
+    azimuth_deg: float,
+    options: VerifyOptions | None = None,
+    show_progress: bool = True,
+) -> VerifiedPoints:
+    """Check every primitive against the wire pixels of the redundant images.
+
+    Args:
+        scene: the oriented scene.
+        primitives: the candidates of each pair (``primitives[k].pair_index`` = k).
+        pair_images: (left name, right name) of each pair: these images do not vote on the
+            primitives they produced.
+        wire_mask: the detector, called once per image on the region where primitives land.
+        azimuth_deg: the wires' horizontal direction, turned into each image's direction.
+    """
+    options = options or VerifyOptions()
+    if not primitives:
+        raise ValueError("no primitives to verify")
+    pts = np.concatenate([p.pts_in_world for p in primitives])
+    pair_of = np.concatenate([np.full(len(p), k, np.int32) for k, p in enumerate(primitives)])
+    hits = np.zeros(len(pts), np.int32)
+    views = np.zeros(len(pts), np.int32)
+    t_detect = t_read = 0.0
+    centre = np.median(pts, axis=0) if len(pts) else np.zeros(3)
+    decoded: list[Path] = []
+    for view in tqdm(scene.images, desc="verify", unit="img", disable=not show_progress):
+        own = np.array([view.name in names for names in pair_images])
+        uv, _, inside = view.project(pts)
+        inside &= ~own[pair_of]
+        idx = np.flatnonzero(inside)
+        if len(idx) == 0:
+            continue
+        px = np.floor(uv[idx]).astype(np.int64)  # pixel containing the projection
+        x0 = max(int(px[:, 0].min()) - options.margin_px, 0)
+        y0 = max(int(px[:, 1].min()) - options.margin_px, 0)
+        x1 = min(int(px[:, 0].max()) + options.margin_px + 1, view.width)
+        y1 = min(int(px[:, 1].max()) + options.margin_px + 1, view.height)
+        t0 = time.perf_counter()
+        image = read_image(str(view.path))
+        decoded.append(view.path)
+        t_read += time.perf_counter() - t0
+        direction = image_wire_direction_deg(view, centre, azimuth_deg)
+        t0 = time.perf_counter()
+        mask = wire_mask(image, direction, (x0, y0, x1, y1))
+        t_detect += time.perf_counter() - t0
+        views[idx] += 1
+        hits[idx] += mask[px[:, 1] - y0, px[:, 0] - x0]
+    need = np.maximum(np.ceil(options.min_hit_ratio * views - 1e-9), 1).astype(np.int32)
+    keep = (views >= options.min_views) & (hits >= need)
+    logger.info(
+        "verify: %d of %d primitives kept (%.1f %%), median %d redundant views; "
+        "decode %.1f s, wire masks %.1f s",
+        keep.sum(),
+        len(pts),
+        100 * keep.mean() if len(pts) else 0.0,
+        int(np.median(views)) if len(views) else 0,
+        t_read,
+        t_detect,
+    )
+    return VerifiedPoints(pts[keep], hits[keep], views[keep], pair_of[keep], decoded)
