@@ -20,6 +20,7 @@ import numpy.typing as npt
 
 from .errors import InputError
 from .scene import Scene, SceneImage
+from .verify import crossing_views
 
 logger = logging.getLogger(__name__)
 
@@ -54,7 +55,8 @@ class WireCorridor:
 
     azimuth_deg: float
     centre_xy: F64  # (2,) a point on the corridor's centre line
-    half_width: float  # model units
+    half_width: float  # model units, with the margin
+    wires_half_width: float  # half the width of the band where the wires were seen
     s_range: tuple[float, float]  # extent along the line from centre_xy
     height: float  # absolute height used for the corridor points (ground + wire_height)
     from_images: bool  # False when the direction was given by the user
@@ -69,6 +71,14 @@ class WireCorridor:
     def normal_xy(self) -> F64:
         d = self.direction_xy
         return np.array([d[1], -d[0]])
+
+    def sample_points(self, step: float = 1.0, margin: float = 5.0) -> F64:
+        """(N, 3) points on five lines along the wire band (its width plus ``margin``)."""
+        line = self.centreline(step)
+        w = self.wires_half_width + margin
+        return np.concatenate(
+            [line + np.r_[k * w * self.normal_xy, 0.0] for k in (-1, -0.5, 0, 0.5, 1)]
+        )
 
     def centreline(self, step: float = 1.0) -> F64:
         """(N, 3) points along the corridor's centre line at the corridor height."""
@@ -155,6 +165,21 @@ def _pick_spread(scene: Scene, n: int) -> list[SceneImage]:
     return [scene.images[k] for k in chosen]
 
 
+def _consensus_azimuth(azimuths: F64, weights: F64, tolerance_deg: float = 5.0) -> float | None:
+    """The azimuth (mod 180) most images agree on within a tolerance, weighted; None when no
+    direction gathers a third of the weight (images without wires vote at random)."""
+    diff = np.abs((azimuths[:, None] - azimuths[None, :] + 90) % 180 - 90)
+    support = (diff < tolerance_deg) @ weights
+    best = int(np.argmax(support))
+    if support[best] < weights.sum() / 3:
+        return None
+    members = diff[best] < tolerance_deg
+    doubled = np.deg2rad(2 * azimuths[members])
+    w = weights[members]
+    mean = np.arctan2((w * np.sin(doubled)).sum(), (w * np.cos(doubled)).sum())
+    return float(np.rad2deg(mean) / 2 % 180.0)
+
+
 def estimate_corridor(scene: Scene, options: PairsOptions | None = None) -> WireCorridor:
     """Estimate the wires' direction (unless given) and their corridor from 2D line evidence."""
     options = options or PairsOptions()
@@ -187,18 +212,11 @@ def estimate_corridor(scene: Scene, options: PairsOptions | None = None) -> Wire
         pts = np.c_[xs, ys, np.ones(len(xs))] @ inv.T
         uv = (pts + 0.5) * factor
         samples.append(_to_plane(view, uv, height))
-    doubled = np.deg2rad(2 * np.asarray(azimuths))
-    w = np.asarray(weights)
     if options.wire_azimuth_deg is not None:
         azimuth = float(options.wire_azimuth_deg) % 180.0
     else:
-        azimuth = float(
-            np.rad2deg(np.arctan2((w * np.sin(doubled)).sum(), (w * np.cos(doubled)).sum()))
-            / 2
-            % 180.0
-        )
-        spread = np.abs((np.asarray(azimuths) - azimuth + 90) % 180 - 90)
-        if np.median(spread) > 10:
+        azimuth = _consensus_azimuth(np.asarray(azimuths), np.asarray(weights))
+        if azimuth is None:
             raise InputError(
                 f"{scene.image_path}: the images do not agree on a wire direction "
                 f"(per-image azimuths {np.round(azimuths, 1).tolist()} deg); "
@@ -206,7 +224,11 @@ def estimate_corridor(scene: Scene, options: PairsOptions | None = None) -> Wire
             )
     az = np.deg2rad(azimuth)
     direction, normal = np.array([np.sin(az), np.cos(az)]), np.array([np.cos(az), -np.sin(az)])
-    xy = np.concatenate(samples)
+    agree = np.abs((np.asarray(azimuths) - azimuth + 90) % 180 - 90) < 5.0
+    # Images whose own dominant direction is not the wires' likely see no wire.
+    xy = np.concatenate(
+        [smp for smp, ok in zip(samples, agree, strict=True) if ok] if agree.any() else samples
+    )
     c = xy @ normal
     s = xy @ direction
     # The wires are the densest band of line pixels across the line direction.
@@ -227,6 +249,7 @@ def estimate_corridor(scene: Scene, options: PairsOptions | None = None) -> Wire
         azimuth_deg=azimuth,
         centre_xy=c_mid * normal + s_mid * direction,
         half_width=0.5 * (c_hi - c_lo) + options.corridor_margin,
+        wires_half_width=0.5 * (c_hi - c_lo),
         s_range=(float(s_lo - s_mid), float(s_hi - s_mid)),
         height=height,
         from_images=options.wire_azimuth_deg is None,
@@ -244,11 +267,20 @@ def estimate_corridor(scene: Scene, options: PairsOptions | None = None) -> Wire
 
 
 def select_pairs(
-    scene: Scene, corridor: WireCorridor, options: PairsOptions | None = None
+    scene: Scene,
+    corridor: WireCorridor,
+    options: PairsOptions | None = None,
+    crossing_offset: float = 0.15,
 ) -> list[ImagePair]:
-    """Score every pair and pick the best few that together cover the wire corridor."""
+    """Score every pair and pick the best few that together cover the wire corridor.
+
+    A part of the corridor counts as covered by a pair when both images see it and so does
+    a third view offset across the wires from both (``crossing_offset`` × height, see
+    :func:`colmap_powerline.verify.crossing_views`): only such a view can reject the pair's
+    false matches there.
+    """
     options = options or PairsOptions()
-    line = corridor.centreline(1.0)
+    line = corridor.sample_points(1.0)
     seen = np.zeros((len(scene.images), len(line)), bool)
     m = options.border_margin_frac
     for i, view in enumerate(scene.images):
@@ -263,6 +295,7 @@ def select_pairs(
     centres = scene.centers_in_world
     ground = scene.ground_height(centres[:, :2])
     direction = corridor.direction_xy
+    height = float(np.median(centres[:, 2]) - corridor.height)
     candidates: list[tuple[ImagePair, npt.NDArray[np.bool_]]] = []
     best_crossing = 0.0
     for i in range(len(scene.images)):
@@ -270,6 +303,10 @@ def select_pairs(
             common = seen[i] & seen[j]
             if common.sum() < 2:
                 continue
+            judges = crossing_views(
+                centres, centres[[i, j]][None], corridor.azimuth_deg, height, crossing_offset
+            )[0]
+            common &= seen[judges].any(axis=0)
             base = centres[j] - centres[i]
             b_xy = float(np.linalg.norm(base[:2]))
             if b_xy < 1e-9:
@@ -283,7 +320,7 @@ def select_pairs(
                 continue
             if not options.min_base_height <= bh <= options.max_base_height:
                 continue
-            coverage = float(common.sum())
+            coverage = float(common.sum()) / 5.0  # five sample lines
             score = (
                 coverage * np.sin(np.deg2rad(crossing)) * min(bh / options.target_base_height, 1.0)
             )

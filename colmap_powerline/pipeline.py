@@ -137,7 +137,7 @@ def reconstruct(
 
     t0 = time.perf_counter()
     corridor = estimate_corridor(scene, options.pairs)
-    pairs = select_pairs(scene, corridor, options.pairs)
+    pairs = select_pairs(scene, corridor, options.pairs, options.verify.crossing_offset)
     timings["pairs"] = time.perf_counter() - t0
     decoded = list(corridor.decoded)
 
@@ -153,7 +153,7 @@ def reconstruct(
     detect_opts = options.detect
     tol = options.verify.tolerance_px
 
-    def wire_mask(image: np.ndarray, direction: float, crop: tuple[int, int, int, int]):
+    def wire_mask(view, image: np.ndarray, direction: float, crop: tuple[int, int, int, int]):
         x0, y0, x1, y1 = crop
         wm = detect_wires(
             image[y0:y1, x0:x1],

@@ -64,7 +64,7 @@ class SyntheticSpanOptions:
     seed: int = 0  # everything is deterministic given the seed
     scale: float = 1.0  # image size relative to 4000 x 3000 px (0.25 → 1000 x 750)
     background: Background = Background.VEGETATION
-    flight: FlightPattern = FlightPattern.ALONG
+    flight: FlightPattern = FlightPattern.ACROSS
     span_m: float = 100.0  # horizontal distance between the towers
     line_azimuth_deg: float = 35.0  # direction tower A → B, clockwise from north
     height_above_wires_m: float = 45.0  # flying height above the highest wire

@@ -32,6 +32,8 @@ class VerifyOptions:
     tolerance_px: float = 1.5  # a projection this close to a wire pixel is a hit (px)
     min_views: int = 2  # a primitive must be seen by at least this many redundant images
     min_hit_ratio: float = 1.0  # share of the redundant images that must see a wire (paper: 1)
+    min_crossing_hits: int = 1  # hits needed from views offset across the wires from the pair
+    crossing_offset: float = 0.15  # such a view is offset across the wires by ≥ this × its height
     margin_px: int = 24  # wire search region: bounding box of the projections plus this margin
 
 
@@ -49,9 +51,36 @@ class VerifiedPoints:
         return len(self.pts_in_world)
 
 
-# A wire detector for one image: (image, direction_deg, crop (x0, y0, x1, y1)) → (H, W) bool
-# mask of the crop, already grown by the tolerance.
-WireMaskFn = Callable[[np.ndarray, float, tuple[int, int, int, int]], npt.NDArray[np.bool_]]
+# A wire detector for one image: (view, image, direction_deg, crop (x0, y0, x1, y1)) → (H, W)
+# bool mask of the crop, already grown by the tolerance.
+WireMaskFn = Callable[
+    [SceneImage, np.ndarray, float, tuple[int, int, int, int]], npt.NDArray[np.bool_]
+]
+
+
+def crossing_views(
+    view_centres: F64, pair_centres: F64, azimuth_deg: float, height: float, offset: float
+) -> npt.NDArray[np.bool_]:
+    """Which views can reject a pair's false matches.
+
+    A camera that moved along the wires from a pair camera sees the same plane through each
+    wire, so it confirms that camera's false matches. Only views offset across the wires from
+    both pair cameras by more than ``offset × height`` can reject them.
+
+    Args:
+        view_centres: (V, 3) camera centres of the views.
+        pair_centres: (P, 2, 3) the two camera centres of each pair.
+        azimuth_deg: the wires' direction.
+        height: camera height above the wires (model units).
+        offset: the lateral offset needed, as a share of ``height``.
+
+    Returns:
+        (P, V) True where view v is offset across the wires from both cameras of pair p.
+    """
+    az = np.deg2rad(azimuth_deg)
+    normal = np.array([np.cos(az), -np.sin(az)])
+    lateral = (view_centres[None, None, :, :2] - pair_centres[:, :, None, :2]) @ normal  # (P,2,V)
+    return np.abs(lateral).min(axis=1) > offset * height
 
 
 def image_wire_direction_deg(view: SceneImage, pt_in_world: F64, azimuth_deg: float) -> float:
@@ -100,10 +129,21 @@ def verify_primitives(
     pair_of = np.concatenate([np.full(len(p), k, np.int32) for k, p in enumerate(primitives)])
     hits = np.zeros(len(pts), np.int32)
     views = np.zeros(len(pts), np.int32)
+    crossing_hits = np.zeros(len(pts), np.int32)
+    by_name = {im.name: im for im in scene.images}
+    pair_centres = np.array(
+        [[by_name[a].center_in_world, by_name[b].center_in_world] for a, b in pair_images]
+    )
+    height = float(np.median(scene.centers_in_world[:, 2]) - np.median(pts[:, 2]))
+    crossing = crossing_views(
+        scene.centers_in_world, pair_centres, azimuth_deg, height, options.crossing_offset
+    )  # (P, V)
     t_detect = t_read = 0.0
     centre = np.median(pts, axis=0) if len(pts) else np.zeros(3)
     decoded: list[Path] = []
-    for view in tqdm(scene.images, desc="verify", unit="img", disable=not show_progress):
+    for v, view in enumerate(
+        tqdm(scene.images, desc="verify", unit="img", disable=not show_progress)
+    ):
         own = np.array([view.name in names for names in pair_images])
         uv, _, inside = view.project(pts)
         inside &= ~own[pair_of]
@@ -121,12 +161,15 @@ def verify_primitives(
         t_read += time.perf_counter() - t0
         direction = image_wire_direction_deg(view, centre, azimuth_deg)
         t0 = time.perf_counter()
-        mask = wire_mask(image, direction, (x0, y0, x1, y1))
+        mask = wire_mask(view, image, direction, (x0, y0, x1, y1))
         t_detect += time.perf_counter() - t0
+        hit = mask[px[:, 1] - y0, px[:, 0] - x0]
         views[idx] += 1
-        hits[idx] += mask[px[:, 1] - y0, px[:, 0] - x0]
+        hits[idx] += hit
+        crossing_hits[idx] += hit & crossing[pair_of[idx], v]
     need = np.maximum(np.ceil(options.min_hit_ratio * views - 1e-9), 1).astype(np.int32)
     keep = (views >= options.min_views) & (hits >= need)
+    keep &= crossing_hits >= options.min_crossing_hits
     logger.info(
         "verify: %d of %d primitives kept (%.1f %%), median %d redundant views; "
         "decode %.1f s, wire masks %.1f s",
