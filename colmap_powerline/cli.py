@@ -54,43 +54,33 @@ def _cmd_synthetic(args: argparse.Namespace) -> int:
 
 
 def _cmd_demo(args: argparse.Namespace) -> int:
-    from .scene import load_scene
+    from .evaluate import evaluate
+    from .pipeline import ReconstructionOptions, reconstruct
     from .synthetic import generate_span, load_true_wires
 
     out = Path(args.output_path)
     span_dir = out / "span"
     t0 = time.perf_counter()
-    if span_dir.exists():
+    if (span_dir / "truth" / "wires.json").exists():
         logger.info("reusing the synthetic span in %s", span_dir)
     else:
         generate_span(span_dir, _synthetic_options(args))
     t_render = time.perf_counter() - t0
-    model = span_dir / "sparse" / "0"
-    scene = load_scene(model if model.is_dir() else span_dir / "sparse_gt", span_dir / "images")
-    wires = load_true_wires(span_dir / "truth" / "wires.json")
-    cam = scene.images[0].camera
-    depth = float(scene.centers_in_world[:, 2].mean() - max(w.z0 for w in wires))
-    print(f"synthetic span in {span_dir} ({t_render:.1f} s)")
-    print(
-        f"  model      {scene.model_path}: {len(scene)} registered images, "
-        f"{len(scene.pts_in_world)} sparse points"
-    )
-    print(
-        f"  camera     {cam.model_name} {cam.width}x{cam.height} px, "
-        f"f = {cam.mean_focal_length():.1f} px, wire GSD ≈ {100 * scene.gsd_at_depth(depth):.1f} cm"
-    )
-    print(
-        f"  {'wire':>4} {'kind':<9} {'span m':>7} {'sag m':>6} {'lowest m':>9} {'clearance m':>11}"
-    )
-    for w in wires:
-        low = w.polyline(0.1)
-        k = int(low[:, 2].argmin())
-        clearance = float(low[k, 2] - scene.ground_height(low[k : k + 1, :2])[0])
-        print(
-            f"  {w.wire_id:>4} {w.kind:<9} {w.length_m:>7.2f} {w.sag_m():>6.2f} "
-            f"{low[k, 2]:>9.2f} {clearance:>11.2f}"
-        )
-    print("  (clearance: lowest point above the ground interpolated from the sparse points)")
+    t0 = time.perf_counter()
+    result = reconstruct(span_dir / "images", span_dir / "sparse" / "0", out / "result",
+                         ReconstructionOptions(show_progress=not args.quiet))
+    t_run = time.perf_counter() - t0
+    truth = load_true_wires(span_dir / "truth" / "wires.json")
+    ev = evaluate(result.verified.pts_in_world, result.wires, truth)
+    print(f"\nsynthetic span: {span_dir} (rendered in {t_render:.0f} s; "
+          f"{len(result.scene)} images, {args.background}, flight {args.flight})")
+    print(f"reconstruction: {out / 'result'} in {t_run:.0f} s — {len(result.pairs)} pairs, "
+          f"{sum(len(p) for p in result.primitives)} primitives, {len(result.verified)} verified "
+          f"points, {len(result.wires)} wires")
+    print("\naccuracy against the true wires (distances in metres):")
+    print(ev.summary_table())
+    targets = ev.meets_targets()
+    print("\ntargets: " + ", ".join(f"{k} {'ok' if v else 'MISSED'}" for k, v in targets.items()))
     return 0
 
 

@@ -151,7 +151,6 @@ def reconstruct(
     t0 = time.perf_counter()
     full_width = max(im.width for im in scene.images)
     detect_opts = options.detect
-    tol = options.verify.tolerance_px
 
     def wire_mask(view, image: np.ndarray, direction: float, crop: tuple[int, int, int, int]):
         x0, y0, x1, y1 = crop
@@ -164,7 +163,7 @@ def reconstruct(
                 or detect_opts.default_min_length(full_width),
             ),
         )
-        return wm.dilated(tol)
+        return wm
 
     verified = verify_primitives(
         scene,

@@ -136,7 +136,7 @@ class RectifiedPair:
                 f"{im.width}x{im.height}"
             )
         map_x, map_y = self.remap_maps(side)
-        rect = cv2.remap(image, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT)
+        rect = cv2.remap(image, map_x, map_y, cv2.INTER_CUBIC, borderMode=cv2.BORDER_CONSTANT)
         valid = (map_x >= 0) & (map_y >= 0) & (map_x <= im.width - 1) & (map_y <= im.height - 1)
         return rect, valid
 

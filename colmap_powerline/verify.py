@@ -19,6 +19,7 @@ import numpy as np
 import numpy.typing as npt
 from tqdm import tqdm
 
+from .detect import WireMask
 from .scene import Scene, SceneImage
 from .triangulate import Primitives
 
@@ -31,9 +32,10 @@ F64 = npt.NDArray[np.float64]
 class VerifyOptions:
     tolerance_px: float = 1.5  # a projection this close to a wire pixel is a hit (px)
     min_views: int = 2  # a primitive must be seen by at least this many redundant images
-    min_hit_ratio: float = 1.0  # share of the redundant images that must see a wire (paper: 1)
+    min_hit_ratio: float = 0.8  # share of the redundant images that must see a wire (paper: 1)
     min_crossing_hits: int = 1  # hits needed from views offset across the wires from the pair
     crossing_offset: float = 0.15  # such a view is offset across the wires by ≥ this × its height
+    refine: bool = True  # move each kept point onto the wire centres of the redundant views
     margin_px: int = 24  # wire search region: bounding box of the projections plus this margin
 
 
@@ -45,17 +47,16 @@ class VerifiedPoints:
     hits: npt.NDArray[np.int32]  # (N,) redundant images in which the point lies on a wire
     views: npt.NDArray[np.int32]  # (N,) redundant images that see the point
     pair_index: npt.NDArray[np.int32]  # (N,) the pair that produced it
+    refined: npt.NDArray[np.bool_]  # (N,) moved onto the wire centres of its views
     decoded: list[Path]  # the images decoded for the verification
 
     def __len__(self) -> int:
         return len(self.pts_in_world)
 
 
-# A wire detector for one image: (view, image, direction_deg, crop (x0, y0, x1, y1)) → (H, W)
-# bool mask of the crop, already grown by the tolerance.
-WireMaskFn = Callable[
-    [SceneImage, np.ndarray, float, tuple[int, int, int, int]], npt.NDArray[np.bool_]
-]
+# A wire detector for one image: (view, image, direction_deg, crop (x0, y0, x1, y1)) → the
+# WireMask of the crop.
+WireMaskFn = Callable[[SceneImage, np.ndarray, float, tuple[int, int, int, int]], WireMask]
 
 
 def crossing_views(
@@ -91,6 +92,46 @@ def image_wire_direction_deg(view: SceneImage, pt_in_world: F64, azimuth_deg: fl
     uv, _, _ = view.project(np.stack([pt_in_world - d, pt_in_world + d]))
     du = uv[1] - uv[0]
     return float(np.rad2deg(np.arctan2(du[1], du[0])) % 180.0)
+
+
+def _wire_offsets(response: np.ndarray, uv: F64, normal: F64, reach: float) -> F64:
+    """Signed distance (px, along ``normal``) from each point to the wire centre near it.
+
+    The template response is sampled across the wire at whole-pixel steps; the centre is the
+    parabola vertex through the strongest sample and its neighbours. NaN when the strongest
+    sample is at the end of the reach (no peak there).
+    """
+    steps = np.arange(-np.ceil(reach), np.ceil(reach) + 1)
+    xy = uv[:, None, :] - 0.5 + steps[None, :, None] * normal  # array index coordinates
+    flat = xy.reshape(-1, 2).astype(np.float32)
+    width = 4096  # cv2.remap maps must stay below 32767 px a side
+    pad = (-len(flat)) % width
+    flat = np.concatenate([flat, np.zeros((pad, 2), np.float32)]).reshape(-1, width, 2)
+    sampled = cv2.remap(np.abs(response).astype(np.float32), flat[..., 0], flat[..., 1],
+                        cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    samples = sampled.ravel()[: xy.shape[0] * xy.shape[1]].reshape(xy.shape[:2]).astype(np.float64)
+    k = np.argmax(samples, axis=1)
+    inner = (k > 0) & (k < len(steps) - 1)
+    kc = np.clip(k, 1, len(steps) - 2)
+    rows = np.arange(len(uv))
+    left, mid, right = samples[rows, kc - 1], samples[rows, kc], samples[rows, kc + 1]
+    denom = left - 2 * mid + right
+    with np.errstate(divide="ignore", invalid="ignore"):
+        vertex = np.where(denom < 0, 0.5 * (left - right) / denom, 0.0)
+    return np.where(inner, steps[kc] + np.clip(vertex, -0.5, 0.5), np.nan)
+
+
+def _projection_jacobian(view: SceneImage, pts: F64) -> F64:
+    """(N, 2, 3) d(pixel)/d(world point), pinhole approximation of the lens."""
+    pts_in_cam = view.to_cam(pts)
+    z = pts_in_cam[:, 2]
+    x, y = pts_in_cam[:, 0] / z, pts_in_cam[:, 1] / z
+    f = view.focal_px
+    d = np.zeros((len(pts), 2, 3))
+    d[:, 0, 0] = d[:, 1, 1] = f / z
+    d[:, 0, 2] = -f * x / z
+    d[:, 1, 2] = -f * y / z
+    return d @ view.rot_cam_from_world
 
 
 def read_image(path: str) -> np.ndarray:
@@ -139,8 +180,9 @@ def verify_primitives(
         scene.centers_in_world, pair_centres, azimuth_deg, height, options.crossing_offset
     )  # (P, V)
     t_detect = t_read = 0.0
-    centre = np.median(pts, axis=0) if len(pts) else np.zeros(3)
     decoded: list[Path] = []
+    normal_eq = np.zeros((len(pts) if options.refine else 0, 3, 3))
+    rhs = np.zeros((len(pts) if options.refine else 0, 3))
     for v, view in enumerate(
         tqdm(scene.images, desc="verify", unit="img", disable=not show_progress)
     ):
@@ -159,17 +201,43 @@ def verify_primitives(
         image = read_image(str(view.path))
         decoded.append(view.path)
         t_read += time.perf_counter() - t0
-        direction = image_wire_direction_deg(view, centre, azimuth_deg)
+        # The wires' direction here, at a primitive this image sees.
+        direction = image_wire_direction_deg(view, pts[idx[len(idx) // 2]], azimuth_deg)
         t0 = time.perf_counter()
-        mask = wire_mask(view, image, direction, (x0, y0, x1, y1))
+        wires = wire_mask(view, image, direction, (x0, y0, x1, y1))
+        del image
+        mask = wires.dilated(options.tolerance_px)
         t_detect += time.perf_counter() - t0
         hit = mask[px[:, 1] - y0, px[:, 0] - x0]
         views[idx] += 1
         hits[idx] += hit
         crossing_hits[idx] += hit & crossing[pair_of[idx], v]
+        if options.refine and hit.any():
+            # One Gauss-Newton observation per hit: the across-wire offset to the centre.
+            hid = idx[hit]
+            a = np.deg2rad(direction)
+            normal = np.array([-np.sin(a), np.cos(a)])
+            offset = _wire_offsets(wires.response, uv[hid] - [x0, y0], normal,
+                                   options.tolerance_px + 1)
+            ok = np.isfinite(offset)
+            hid, offset = hid[ok], offset[ok]
+            row = np.einsum("j,njk->nk", normal, _projection_jacobian(view, pts[hid]))  # (n, 3)
+            np.add.at(normal_eq, hid, row[:, :, None] * row[:, None, :])
+            np.add.at(rhs, hid, row * offset[:, None])
     need = np.maximum(np.ceil(options.min_hit_ratio * views - 1e-9), 1).astype(np.int32)
     keep = (views >= options.min_views) & (hits >= need)
     keep &= crossing_hits >= options.min_crossing_hits
+    kept_pts = pts[keep]
+    refined = np.zeros(len(kept_pts), bool)
+    if options.refine and keep.any():
+        a_mat, b_vec = normal_eq[keep], rhs[keep]
+        # Views constrain only the directions across the wire: damp the step along it.
+        damp = 1e-3 * np.trace(a_mat, axis1=1, axis2=2)[:, None, None] * np.eye(3) + 1e-12
+        step = np.linalg.solve(a_mat + damp, b_vec[..., None])[..., 0]
+        max_step = 5.0 * height / scene.images[0].focal_px  # five pixels at the wires
+        refined = np.linalg.norm(step, axis=1) < max_step
+        refined &= hits[keep] >= 2
+        kept_pts[refined] += step[refined]
     logger.info(
         "verify: %d of %d primitives kept (%.1f %%), median %d redundant views; "
         "decode %.1f s, wire masks %.1f s",
@@ -180,4 +248,4 @@ def verify_primitives(
         t_read,
         t_detect,
     )
-    return VerifiedPoints(pts[keep], hits[keep], views[keep], pair_of[keep], decoded)
+    return VerifiedPoints(kept_pts, hits[keep], views[keep], pair_of[keep], refined, decoded)

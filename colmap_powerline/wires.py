@@ -1,0 +1,330 @@
+"""Wires: split verified points into conductors and fit a catenary to each.
+
+Points are expressed in line coordinates (s along the wires' azimuth, c across, z up) and
+voxelised coarsely along s and finely across, so that one wire becomes a thin chain of
+voxels; chains that touch are one wire candidate. This separates conductors that are only
+0.5 m apart side by side as well as conductors stacked vertically. Each candidate gets a
+vertical plane (robust line in plan) and a robust catenary in that plane; pieces of the
+same wire (split by gaps, or found by several pairs) are merged when their curves agree;
+candidates that are not wires (too short, too few points, poor fit) are dropped; finally
+every point is given to the nearest wire within a tolerance and the wires are refitted.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+from scipy.optimize import least_squares
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+
+logger = logging.getLogger(__name__)
+
+F64 = npt.NDArray[np.float64]
+I64 = npt.NDArray[np.int64]
+GroundFn = Callable[[F64], F64]
+
+
+@dataclass(kw_only=True)
+class WiresOptions:
+    voxel_along: float = 0.5  # voxel size along the line (model units)
+    voxel_across: float = 0.06  # voxel size across the line and in height
+    link_cells: int = 2  # voxels this many cells apart across/in height are neighbours
+    link_along_cells: int = 6  # and this many along the line (bridges small gaps)
+    min_points: int = 30  # candidates with fewer points are not wires
+    min_length: float = 5.0  # candidates shorter along the line are not wires
+    max_rms: float = 0.10  # candidates whose robust fit is worse are not wires
+    inlier_distance: float = 0.12  # points farther from the fitted curve are not support
+    merge_distance: float = 0.15  # two curves closer than this (mean) are one wire
+    max_gap: float = 25.0  # pieces at most this far apart along the line may be merged
+    max_plane_angle_deg: float = 10.0  # wire planes deviate at most this from the azimuth
+    sample_step: float = 0.1  # polyline spacing of the fitted wires
+
+
+def _catenary(s: F64, k: float, s0: float, z0: float) -> F64:
+    """z(s) = z0 + (cosh(k (s - s0)) - 1) / k, with k = 1 / a (stable as k → 0)."""
+    u = k * (np.asarray(s) - s0)
+    with np.errstate(over="ignore"):
+        big = (np.cosh(u) - 1) / k
+    small = k * (np.asarray(s) - s0) ** 2 / 2 * (1 + u**2 / 12)
+    return z0 + np.where(np.abs(u) < 1e-3, small, big)
+
+
+def fit_catenary(
+    s: F64, z: F64, f_scale: float = 0.03, loss: str = "soft_l1"
+) -> tuple[float, float, float, F64]:
+    """Robust catenary ``z = z0 + a (cosh((s - s0) / a) - 1)`` through (s, z) samples.
+
+    Returns:
+        a, s0, z0 and the (N,) residuals. Near-straight wires get a large ``a`` (≤ 1e6).
+    """
+    s, z = np.asarray(s, np.float64), np.asarray(z, np.float64)
+    if s.shape != z.shape or s.ndim != 1:
+        raise ValueError(f"{s.shape=} and {z.shape=} must be equal (N,)")
+    if len(s) < 3:
+        raise ValueError(f"need at least 3 points to fit a catenary, got {len(s)}")
+    coef = np.polyfit(s, z, 2)
+    curv = max(2 * coef[0], 1e-6)
+    s0 = -coef[1] / (2 * coef[0]) if coef[0] > 1e-9 else float(np.mean(s))
+    s0 = float(np.clip(s0, s.min() - 1e4, s.max() + 1e4))
+    z0 = float(np.polyval(coef, s0)) if coef[0] > 1e-9 else float(np.min(z))
+    k_max = 0.05
+
+    def residual(x: F64) -> F64:
+        return _catenary(s, x[0], x[1], x[2]) - z
+
+    x0 = np.array([min(curv, k_max * 0.99), s0, z0])
+    lo = [1e-6, s.min() - 1e4, -np.inf]
+    hi = [k_max, s.max() + 1e4, np.inf]
+    x0 = np.clip(x0, np.array(lo) + 1e-12, np.array(hi) - 1e-12)
+    sol = least_squares(residual, x0, bounds=(lo, hi), loss=loss, f_scale=f_scale,
+                        x_scale=[1e-3, 10.0, 1.0])
+    k, s0, z0 = sol.x
+    return float(1.0 / k), float(s0), float(z0), residual(sol.x)
+
+
+@dataclass(frozen=True, eq=False)
+class FittedWire:
+    """One wire: a catenary in a vertical plane, between its observed ends."""
+
+    wire_id: int
+    plane_origin_xy: F64  # (2,) a point of the wire's vertical plane
+    plane_direction_xy: F64  # (2,) unit horizontal direction of the plane
+    catenary_a: float  # z(s) = z0 + a (cosh((s - s0) / a) - 1),
+    s0: float  # with s = (xy - origin) · direction
+    z0: float
+    s_range: tuple[float, float]  # observed ends
+    point_indices: I64  # (K,) indices of the supporting input points
+    rms_residual: float  # RMS distance of the support to the curve (model units)
+
+    def z_at(self, s: F64) -> F64:
+        return _catenary(np.asarray(s, np.float64), 1.0 / self.catenary_a, self.s0, self.z0)
+
+    def points(self, s: F64) -> F64:
+        """(N,) positions along the plane → (N, 3) points on the wire."""
+        s = np.asarray(s, np.float64).reshape(-1)
+        xy = self.plane_origin_xy + s[:, None] * self.plane_direction_xy
+        return np.c_[xy, self.z_at(s)]
+
+    def polyline(self, step: float = 0.1) -> F64:
+        """(M, 3) the wire sampled every ``step`` between its observed ends."""
+        lo, hi = self.s_range
+        n = max(int(np.ceil((hi - lo) / step)) + 1, 2)
+        return self.points(np.linspace(lo, hi, n))
+
+    def plane_coords(self, pts: F64) -> tuple[F64, F64, F64]:
+        """(N, 3) points → s along the plane, signed offset across it, height above the curve."""
+        rel = np.asarray(pts, np.float64)[:, :2] - self.plane_origin_xy
+        d = self.plane_direction_xy
+        s = rel @ d
+        across = rel @ np.array([d[1], -d[0]])
+        return s, across, np.asarray(pts)[:, 2] - self.z_at(s)
+
+    def distance(self, pts: F64) -> F64:
+        """(N,) distance of points to the curve (first order in the residuals)."""
+        s, across, dz = self.plane_coords(pts)
+        # The vertical residual, turned perpendicular to the curve in its plane.
+        a = self.catenary_a
+        t = np.sinh((s - self.s0) / a)
+        return np.hypot(across, dz / np.sqrt(1 + t**2))
+
+    def sag(self) -> float:
+        """Largest vertical distance between the chord joining the observed ends and the wire."""
+        lo, hi = self.s_range
+        s = np.linspace(lo, hi, 2001)
+        z = self.z_at(s)
+        chord = z[0] + (z[-1] - z[0]) * (s - lo) / max(hi - lo, 1e-12)
+        return float(np.max(chord - z))
+
+    def lowest_point(self) -> F64:
+        lo, hi = self.s_range
+        s = float(np.clip(self.s0, lo, hi))
+        return self.points(np.array([s]))[0]
+
+    def length(self) -> float:
+        """Arc length between the observed ends."""
+        p = self.polyline(0.05)
+        return float(np.linalg.norm(np.diff(p, axis=0), axis=1).sum())
+
+    def to_json(self, ground_height: GroundFn | None = None, step: float = 0.1) -> dict:
+        poly = self.polyline(step)
+        clearance = None
+        if ground_height is not None:
+            clearance = float(np.min(poly[:, 2] - ground_height(poly[:, :2])))
+        return {
+            "id": self.wire_id,
+            "catenary": {"a": self.catenary_a, "s0": self.s0, "z0": self.z0},
+            "plane": {"origin": self.plane_origin_xy.tolist(),
+                      "direction": self.plane_direction_xy.tolist()},
+            "ends": [poly[0].tolist(), poly[-1].tolist()],
+            "s_range": list(self.s_range),
+            "sag_m": self.sag(),
+            "lowest_point": self.lowest_point().tolist(),
+            "clearance_m": clearance,
+            "num_points": int(len(self.point_indices)),
+            "rms_m": self.rms_residual,
+            "length_m": self.length(),
+            "polyline": np.round(poly, 4).tolist(),
+        }
+
+
+def _fit(pts: F64, idx: I64, azimuth_xy: F64, options: WiresOptions) -> FittedWire | None:
+    """Plane + catenary through the points ``pts[idx]``; None when it is not a wire."""
+    p = pts[idx]
+    normal = np.array([azimuth_xy[1], -azimuth_xy[0]])
+    s, c = p[:, :2] @ azimuth_xy, p[:, :2] @ normal
+    if len(idx) < options.min_points or np.ptp(s) < options.min_length:
+        return None
+    # Plane: c = c0 + slope * s, robustly.
+    sol = least_squares(lambda x: x[0] + x[1] * s - c, [np.median(c), 0.0], loss="soft_l1",
+                        f_scale=0.03)
+    c0, slope = sol.x
+    if np.degrees(np.arctan(abs(slope))) > options.max_plane_angle_deg:
+        return None
+    direction = (azimuth_xy + slope * normal) / np.hypot(1.0, slope)
+    origin = c0 * normal
+    s_plane = (p[:, :2] - origin) @ direction
+    try:
+        a, s0, z0, res_z = fit_catenary(s_plane, p[:, 2])
+    except ValueError:
+        return None
+    across = (p[:, :2] - origin) @ np.array([direction[1], -direction[0]])
+    dist = np.hypot(across, res_z)
+    inl = dist < options.inlier_distance
+    if inl.sum() < options.min_points:
+        return None
+    lo, hi = np.quantile(s_plane[inl], [0.0, 1.0])
+    rms = float(np.sqrt(np.mean(dist[inl] ** 2)))
+    return FittedWire(wire_id=-1, plane_origin_xy=origin, plane_direction_xy=direction,
+                      catenary_a=a, s0=s0, z0=z0, s_range=(float(lo), float(hi)),
+                      point_indices=idx[inl], rms_residual=rms)
+
+
+def _same_wire(a: FittedWire, b: FittedWire, options: WiresOptions) -> bool:
+    """Do two fitted pieces describe one wire (over their overlap, or across a short gap)?"""
+    lo = max(a.s_range[0], b.s_range[0])
+    hi = min(a.s_range[1], b.s_range[1])
+    if hi < lo:  # disjoint: compare across the gap
+        if lo - hi > options.max_gap:
+            return False
+        s = np.linspace(hi, lo, 5)
+    else:
+        s = np.linspace(lo, hi, 9)
+    pts = a.points(s)
+    # Both wires' planes share nearly the same direction: evaluate b at the same places.
+    s_b, across, dz = b.plane_coords(pts)
+    return bool(np.mean(np.hypot(across, dz)) < options.merge_distance)
+
+
+def estimate_azimuth(pts: F64) -> float:
+    """The dominant horizontal direction of the points (degrees clockwise from +y)."""
+    xy = pts[:, :2] - np.median(pts[:, :2], axis=0)
+    _, _, vt = np.linalg.svd(xy[:: max(len(xy) // 20000, 1)], full_matrices=False)
+    d = vt[0]
+    return float(np.degrees(np.arctan2(d[0], d[1])) % 180.0)
+
+
+def split_wires(
+    pts_in_world: F64, azimuth_deg: float | None = None, options: WiresOptions | None = None
+) -> list[FittedWire]:
+    """Split verified points into individual wires and fit each.
+
+    Args:
+        pts_in_world: (N, 3) verified wire points.
+        azimuth_deg: the line's horizontal direction (clockwise from +y); None: from the points.
+        options: clustering, fitting and merging options.
+
+    Returns:
+        The wires, numbered from 0, ordered across the line then by height.
+    """
+    options = options or WiresOptions()
+    pts = np.asarray(pts_in_world, np.float64)
+    if pts.ndim != 2 or pts.shape[1] != 3:
+        raise ValueError(f"{pts.shape=} but expected (N, 3)")
+    if len(pts) < options.min_points:
+        return []
+    if azimuth_deg is None:
+        azimuth_deg = estimate_azimuth(pts)
+    az = np.deg2rad(azimuth_deg)
+    along = np.array([np.sin(az), np.cos(az)])
+    normal = np.array([along[1], -along[0]])
+    s, c, z = pts[:, :2] @ along, pts[:, :2] @ normal, pts[:, 2]
+
+    # Voxel chains: coarse along the line, fine across and in height.
+    cells = np.floor(np.c_[s / options.voxel_along, c / options.voxel_across,
+                           z / options.voxel_across]).astype(np.int64)
+    cells -= cells.min(axis=0)
+    vox, inverse, counts = np.unique(cells, axis=0, return_inverse=True, return_counts=True)
+    inverse = inverse.ravel()
+    from scipy.spatial import cKDTree
+
+    scaled = vox / np.array([options.link_along_cells, options.link_cells, options.link_cells])
+    pairs = cKDTree(scaled).query_pairs(1.0 + 1e-9, p=np.inf, output_type="ndarray")
+    graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])),
+                       shape=(len(vox), len(vox)))
+    n_comp, comp_of_vox = connected_components(graph, directed=False)
+    comp = comp_of_vox[inverse]
+    order = np.argsort(comp, kind="stable")
+    bounds = np.searchsorted(comp[order], np.arange(n_comp + 1))
+    pieces: list[FittedWire] = []
+    for k in range(n_comp):
+        idx = order[bounds[k] : bounds[k + 1]]
+        if len(idx) < options.min_points:
+            continue
+        fit = _fit(pts, idx, along, options)
+        if fit is not None and fit.rms_residual <= options.max_rms:
+            pieces.append(fit)
+
+    # Merge pieces of the same wire (gaps, duplicates from several pairs), then refit.
+    n = len(pieces)
+    parent = list(range(n))
+
+    def root(i: int) -> int:
+        while parent[i] != i:
+            parent[i] = parent[parent[i]]
+            i = parent[i]
+        return i
+
+    for i in range(n):
+        for j in range(i + 1, n):
+            if root(i) != root(j) and _same_wire(pieces[i], pieces[j], options):
+                parent[root(j)] = root(i)
+    groups: dict[int, list[int]] = {}
+    for i in range(n):
+        groups.setdefault(root(i), []).append(i)
+    merged = []
+    for members in groups.values():
+        idx = np.concatenate([pieces[m].point_indices for m in members])
+        fit = _fit(pts, idx, along, options) if len(members) > 1 else pieces[members[0]]
+        if fit is not None:
+            merged.append(fit)
+
+    # Every point to its nearest wire within the tolerance, then a final fit.
+    wires: list[FittedWire] = []
+    if merged:
+        dist = np.stack([w.distance(pts) for w in merged])  # (K, N)
+        for k, w in enumerate(merged):
+            s_w = w.plane_coords(pts)[0]
+            outside = (s_w < w.s_range[0] - 2 * options.max_gap) | (
+                s_w > w.s_range[1] + 2 * options.max_gap)
+            dist[k, outside] = np.inf
+        best = np.argmin(dist, axis=0)
+        close = dist[best, np.arange(len(pts))] < options.inlier_distance
+        for k in range(len(merged)):
+            fit = _fit(pts, np.flatnonzero(close & (best == k)), along, options)
+            if fit is not None and fit.rms_residual <= options.max_rms:
+                wires.append(fit)
+    # Deterministic numbering: across the line, then by height.
+    wires.sort(key=lambda w: (round(float(w.plane_origin_xy @ normal), 1), w.z0))
+    out = [FittedWire(wire_id=i, plane_origin_xy=w.plane_origin_xy,
+                      plane_direction_xy=w.plane_direction_xy, catenary_a=w.catenary_a, s0=w.s0,
+                      z0=w.z0, s_range=w.s_range, point_indices=w.point_indices,
+                      rms_residual=w.rms_residual) for i, w in enumerate(wires)]
+    logger.info("wires: %d wires from %d points (%d candidates, %d after merging); %d points "
+                "assigned", len(out), len(pts), len(pieces), len(merged),
+                sum(len(w.point_indices) for w in out))
+    return out
