@@ -67,16 +67,24 @@ def _cmd_demo(args: argparse.Namespace) -> int:
         generate_span(span_dir, _synthetic_options(args))
     t_render = time.perf_counter() - t0
     t0 = time.perf_counter()
-    result = reconstruct(span_dir / "images", span_dir / "sparse" / "0", out / "result",
-                         ReconstructionOptions(show_progress=not args.quiet))
+    result = reconstruct(
+        span_dir / "images",
+        span_dir / "sparse" / "0",
+        out / "result",
+        ReconstructionOptions(show_progress=not args.quiet),
+    )
     t_run = time.perf_counter() - t0
     truth = load_true_wires(span_dir / "truth" / "wires.json")
     ev = evaluate(result.verified.pts_in_world, result.wires, truth)
-    print(f"\nsynthetic span: {span_dir} (rendered in {t_render:.0f} s; "
-          f"{len(result.scene)} images, {args.background}, flight {args.flight})")
-    print(f"reconstruction: {out / 'result'} in {t_run:.0f} s — {len(result.pairs)} pairs, "
-          f"{sum(len(p) for p in result.primitives)} primitives, {len(result.verified)} verified "
-          f"points, {len(result.wires)} wires")
+    print(
+        f"\nsynthetic span: {span_dir} (rendered in {t_render:.0f} s; "
+        f"{len(result.scene)} images, {args.background}, flight {args.flight})"
+    )
+    print(
+        f"reconstruction: {out / 'result'} in {t_run:.0f} s — {len(result.pairs)} pairs, "
+        f"{sum(len(p) for p in result.primitives)} primitives, {len(result.verified)} verified "
+        f"points, {len(result.wires)} wires"
+    )
     print("\naccuracy against the true wires (distances in metres):")
     print(ev.summary_table())
     targets = ev.meets_targets()

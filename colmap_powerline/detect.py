@@ -128,9 +128,9 @@ def detect_wires(
     gray = _to_gray(image)
     h, w = gray.shape
     spread, step = options.angle_spread_deg, max(options.angle_step_deg, 1e-3)
-    angles = direction_deg + np.arange(-spread, spread + 1e-9, step) if spread > 0 else [
-        direction_deg
-    ]
+    angles = (
+        direction_deg + np.arange(-spread, spread + 1e-9, step) if spread > 0 else [direction_deg]
+    )
     response = line_response(gray, float(angles[0]), options)
     for a in angles[1:]:
         r = line_response(gray, float(a), options)
@@ -158,7 +158,11 @@ def detect_wires(
     long_enough = (hi - lo) >= options.min_length_px(w)
     long_enough[0] = False
     mask = long_enough[labels]
-    logger.debug("detect: %d of %d components kept, %d wire pixels (%.2f %%)",
-                 int(long_enough.sum()), n - 1, int(mask.sum()), 100 * mask.mean())
-    return WireMask(mask, response.astype(np.float32), float(direction_deg),
-                    int(long_enough.sum()))
+    logger.debug(
+        "detect: %d of %d components kept, %d wire pixels (%.2f %%)",
+        int(long_enough.sum()),
+        n - 1,
+        int(mask.sum()),
+        100 * mask.mean(),
+    )
+    return WireMask(mask, response.astype(np.float32), float(direction_deg), int(long_enough.sum()))

@@ -18,12 +18,12 @@ import numpy as np
 import numpy.typing as npt
 from tqdm import tqdm
 
-from .detect import DetectOptions, detect_wires
+from .detect import DetectOptions, WireMask, detect_wires
 from .errors import InputError
 from .export import export_results
 from .pairs import ImagePair, PairsOptions, WireCorridor, estimate_corridor, select_pairs
 from .rectify import RectifiedPair, RectifyOptions, rectify_pair
-from .scene import Scene, load_scene
+from .scene import Scene, SceneImage, load_scene
 from .triangulate import Primitives, TriangulateOptions, triangulate_pair, wire_centres
 from .verify import VerifiedPoints, VerifyOptions, read_image, verify_primitives
 from .wires import FittedWire, WiresOptions, split_wires
@@ -149,21 +149,17 @@ def reconstruct(
         raise InputError(f"{image_path}: no wire was found in the chosen pairs")
 
     t0 = time.perf_counter()
-    full_width = max(im.width for im in scene.images)
-    detect_opts = options.detect
 
-    def wire_mask(view, image: np.ndarray, direction: float, crop: tuple[int, int, int, int]):
+    def wire_mask(
+        view: SceneImage, image: np.ndarray, direction: float, crop: tuple[int, int, int, int]
+    ) -> WireMask:
+        # Only the crop where primitives land is searched; the length filter stays scaled
+        # to the whole image.
         x0, y0, x1, y1 = crop
-        wm = detect_wires(
-            image[y0:y1, x0:x1],
-            direction,
-            dataclasses.replace(
-                detect_opts,
-                min_component_length_px=detect_opts.min_component_length_px
-                or detect_opts.default_min_length(full_width),
-            ),
+        crop_options = dataclasses.replace(
+            options.detect, min_component_length_px=options.detect.min_length_px(view.width)
         )
-        return wm
+        return detect_wires(image[y0:y1, x0:x1], direction, crop_options)
 
     verified = verify_primitives(
         scene,

@@ -107,8 +107,13 @@ def _wire_offsets(response: np.ndarray, uv: F64, normal: F64, reach: float) -> F
     width = 4096  # cv2.remap maps must stay below 32767 px a side
     pad = (-len(flat)) % width
     flat = np.concatenate([flat, np.zeros((pad, 2), np.float32)]).reshape(-1, width, 2)
-    sampled = cv2.remap(np.abs(response).astype(np.float32), flat[..., 0], flat[..., 1],
-                        cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    sampled = cv2.remap(
+        np.abs(response).astype(np.float32),
+        flat[..., 0],
+        flat[..., 1],
+        cv2.INTER_LINEAR,
+        borderMode=cv2.BORDER_REPLICATE,
+    )
     samples = sampled.ravel()[: xy.shape[0] * xy.shape[1]].reshape(xy.shape[:2]).astype(np.float64)
     k = np.argmax(samples, axis=1)
     inner = (k > 0) & (k < len(steps) - 1)
@@ -217,8 +222,9 @@ def verify_primitives(
             hid = idx[hit]
             a = np.deg2rad(direction)
             normal = np.array([-np.sin(a), np.cos(a)])
-            offset = _wire_offsets(wires.response, uv[hid] - [x0, y0], normal,
-                                   options.tolerance_px + 1)
+            offset = _wire_offsets(
+                wires.response, uv[hid] - [x0, y0], normal, options.tolerance_px + 1
+            )
             ok = np.isfinite(offset)
             hid, offset = hid[ok], offset[ok]
             row = np.einsum("j,njk->nk", normal, _projection_jacobian(view, pts[hid]))  # (n, 3)

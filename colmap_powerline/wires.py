@@ -81,8 +81,9 @@ def fit_catenary(
     lo = [1e-6, s.min() - 1e4, -np.inf]
     hi = [k_max, s.max() + 1e4, np.inf]
     x0 = np.clip(x0, np.array(lo) + 1e-12, np.array(hi) - 1e-12)
-    sol = least_squares(residual, x0, bounds=(lo, hi), loss=loss, f_scale=f_scale,
-                        x_scale=[1e-3, 10.0, 1.0])
+    sol = least_squares(
+        residual, x0, bounds=(lo, hi), loss=loss, f_scale=f_scale, x_scale=[1e-3, 10.0, 1.0]
+    )
     k, s0, z0 = sol.x
     return float(1.0 / k), float(s0), float(z0), residual(sol.x)
 
@@ -158,8 +159,10 @@ class FittedWire:
         return {
             "id": self.wire_id,
             "catenary": {"a": self.catenary_a, "s0": self.s0, "z0": self.z0},
-            "plane": {"origin": self.plane_origin_xy.tolist(),
-                      "direction": self.plane_direction_xy.tolist()},
+            "plane": {
+                "origin": self.plane_origin_xy.tolist(),
+                "direction": self.plane_direction_xy.tolist(),
+            },
             "ends": [poly[0].tolist(), poly[-1].tolist()],
             "s_range": list(self.s_range),
             "sag_m": self.sag(),
@@ -180,8 +183,9 @@ def _fit(pts: F64, idx: I64, azimuth_xy: F64, options: WiresOptions) -> FittedWi
     if len(idx) < options.min_points or np.ptp(s) < options.min_length:
         return None
     # Plane: c = c0 + slope * s, robustly.
-    sol = least_squares(lambda x: x[0] + x[1] * s - c, [np.median(c), 0.0], loss="soft_l1",
-                        f_scale=0.03)
+    sol = least_squares(
+        lambda x: x[0] + x[1] * s - c, [np.median(c), 0.0], loss="soft_l1", f_scale=0.03
+    )
     c0, slope = sol.x
     if np.degrees(np.arctan(abs(slope))) > options.max_plane_angle_deg:
         return None
@@ -199,9 +203,17 @@ def _fit(pts: F64, idx: I64, azimuth_xy: F64, options: WiresOptions) -> FittedWi
         return None
     lo, hi = np.quantile(s_plane[inl], [0.0, 1.0])
     rms = float(np.sqrt(np.mean(dist[inl] ** 2)))
-    return FittedWire(wire_id=-1, plane_origin_xy=origin, plane_direction_xy=direction,
-                      catenary_a=a, s0=s0, z0=z0, s_range=(float(lo), float(hi)),
-                      point_indices=idx[inl], rms_residual=rms)
+    return FittedWire(
+        wire_id=-1,
+        plane_origin_xy=origin,
+        plane_direction_xy=direction,
+        catenary_a=a,
+        s0=s0,
+        z0=z0,
+        s_range=(float(lo), float(hi)),
+        point_indices=idx[inl],
+        rms_residual=rms,
+    )
 
 
 def _same_wire(a: FittedWire, b: FittedWire, options: WiresOptions) -> bool:
@@ -255,8 +267,9 @@ def split_wires(
     s, c, z = pts[:, :2] @ along, pts[:, :2] @ normal, pts[:, 2]
 
     # Voxel chains: coarse along the line, fine across and in height.
-    cells = np.floor(np.c_[s / options.voxel_along, c / options.voxel_across,
-                           z / options.voxel_across]).astype(np.int64)
+    cells = np.floor(
+        np.c_[s / options.voxel_along, c / options.voxel_across, z / options.voxel_across]
+    ).astype(np.int64)
     cells -= cells.min(axis=0)
     vox, inverse, counts = np.unique(cells, axis=0, return_inverse=True, return_counts=True)
     inverse = inverse.ravel()
@@ -264,8 +277,9 @@ def split_wires(
 
     scaled = vox / np.array([options.link_along_cells, options.link_cells, options.link_cells])
     pairs = cKDTree(scaled).query_pairs(1.0 + 1e-9, p=np.inf, output_type="ndarray")
-    graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])),
-                       shape=(len(vox), len(vox)))
+    graph = coo_matrix(
+        (np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(len(vox), len(vox))
+    )
     n_comp, comp_of_vox = connected_components(graph, directed=False)
     comp = comp_of_vox[inverse]
     order = np.argsort(comp, kind="stable")
@@ -310,7 +324,8 @@ def split_wires(
         for k, w in enumerate(merged):
             s_w = w.plane_coords(pts)[0]
             outside = (s_w < w.s_range[0] - 2 * options.max_gap) | (
-                s_w > w.s_range[1] + 2 * options.max_gap)
+                s_w > w.s_range[1] + 2 * options.max_gap
+            )
             dist[k, outside] = np.inf
         best = np.argmin(dist, axis=0)
         close = dist[best, np.arange(len(pts))] < options.inlier_distance
@@ -320,11 +335,26 @@ def split_wires(
                 wires.append(fit)
     # Deterministic numbering: across the line, then by height.
     wires.sort(key=lambda w: (round(float(w.plane_origin_xy @ normal), 1), w.z0))
-    out = [FittedWire(wire_id=i, plane_origin_xy=w.plane_origin_xy,
-                      plane_direction_xy=w.plane_direction_xy, catenary_a=w.catenary_a, s0=w.s0,
-                      z0=w.z0, s_range=w.s_range, point_indices=w.point_indices,
-                      rms_residual=w.rms_residual) for i, w in enumerate(wires)]
-    logger.info("wires: %d wires from %d points (%d candidates, %d after merging); %d points "
-                "assigned", len(out), len(pts), len(pieces), len(merged),
-                sum(len(w.point_indices) for w in out))
+    out = [
+        FittedWire(
+            wire_id=i,
+            plane_origin_xy=w.plane_origin_xy,
+            plane_direction_xy=w.plane_direction_xy,
+            catenary_a=w.catenary_a,
+            s0=w.s0,
+            z0=w.z0,
+            s_range=w.s_range,
+            point_indices=w.point_indices,
+            rms_residual=w.rms_residual,
+        )
+        for i, w in enumerate(wires)
+    ]
+    logger.info(
+        "wires: %d wires from %d points (%d candidates, %d after merging); %d points assigned",
+        len(out),
+        len(pts),
+        len(pieces),
+        len(merged),
+        sum(len(w.point_indices) for w in out),
+    )
     return out

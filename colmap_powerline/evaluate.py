@@ -1,0 +1,178 @@
+"""Accuracy and completeness against known wires (synthetic spans, benchmark, demo).
+
+Definitions follow DESIGN.md: distances are exact point-to-polyline distances; a true
+wire's completeness is the share of its length, 2 m clear of each attachment and sampled
+every 5 cm, with a measured point within 10 cm; a wire is found at ≥ 50 % completeness; a
+ghost is a fitted wire whose polyline lies mostly (> 50 %) farther than 30 cm from every
+true wire; outliers are measured points farther than 30 cm from every true wire.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Protocol
+
+import numpy as np
+import numpy.typing as npt
+from scipy.spatial import cKDTree
+
+from .synthetic import TrueWire
+
+F64 = npt.NDArray[np.float64]
+
+
+class FittedWireLike(Protocol):
+    wire_id: int
+    s_range: tuple[float, float]
+
+    def polyline(self, step: float = 0.1) -> F64: ...
+
+    def points(self, s: F64) -> F64: ...
+
+    def sag(self) -> float: ...
+
+
+def distance_to_polyline(pts: F64, polyline: F64) -> F64:
+    """(N, 3) points → (N,) exact distance to the (M, 3) polyline's segments."""
+    pts = np.asarray(pts, np.float64).reshape(-1, 3)
+    a, b = polyline[:-1], polyline[1:]
+    seg = b - a
+    mid = 0.5 * (a + b)
+    tree = cKDTree(mid)
+    # Candidate segments: the k nearest midpoints (segments are short and evenly spaced).
+    k = min(8, len(mid))
+    _, cand = tree.query(pts, k=k)
+    cand = cand.reshape(len(pts), k)
+    sa, sv = a[cand], seg[cand]  # (N, k, 3)
+    t = np.einsum("nkj,nkj->nk", pts[:, None] - sa, sv) / np.maximum(
+        np.einsum("nkj,nkj->nk", sv, sv), 1e-300
+    )
+    proj = sa + np.clip(t, 0, 1)[..., None] * sv
+    return np.linalg.norm(pts[:, None] - proj, axis=2).min(axis=1)
+
+
+@dataclass(frozen=True)
+class WireScore:
+    """How well one TRUE wire was reconstructed."""
+
+    wire_id: int
+    kind: str
+    completeness: float  # share of the length (2 m clear of the ends) with a point ≤ 10 cm
+    found: bool  # completeness ≥ 0.5
+    num_points: int  # measured points nearest to this wire and within 30 cm
+    median_error_m: float  # of those points' distances
+    rms_error_m: float
+    catenary_rms_m: float | None  # RMS distance of the matching fitted wire to this wire
+    sag_error_m: float | None  # fitted sag − true sag over the fitted wire's observed range
+
+
+@dataclass(frozen=True)
+class Evaluation:
+    wires: list[WireScore]
+    ghost_wires: int
+    outlier_share: float
+    num_points: int
+
+    def summary_table(self) -> str:
+        def f(v: float | None, scale: float = 100.0, fmt: str = "{:7.2f}") -> str:
+            return "      –" if v is None or not np.isfinite(v) else fmt.format(v * scale)
+
+        lines = [
+            f"{'wire':>4} {'kind':<9} {'complete':>8} {'points':>7} {'median':>7} "
+            f"{'rms':>7} {'catenary':>8} {'sag err':>7}",
+            f"{'':>4} {'':<9} {'%':>8} {'':>7} {'cm':>7} {'cm':>7} {'cm rms':>8} {'cm':>7}",
+        ]
+        for w in self.wires:
+            lines.append(
+                f"{w.wire_id:>4} {w.kind:<9} {100 * w.completeness:>8.1f} {w.num_points:>7} "
+                f"{f(w.median_error_m)} {f(w.rms_error_m)} {f(w.catenary_rms_m):>8} "
+                f"{f(w.sag_error_m)}"
+            )
+        found = sum(w.found for w in self.wires)
+        lines.append(
+            f"found {found}/{len(self.wires)} wires, {self.ghost_wires} ghost wires, "
+            f"{100 * self.outlier_share:.2f} % of {self.num_points} points > 30 cm"
+        )
+        return "\n".join(lines)
+
+    def meets_targets(self, min_completeness: float = 0.98) -> dict[str, bool]:
+        found = [w for w in self.wires if w.found]
+
+        def all_ok(values: list[float | None], limit: float) -> bool:
+            vals = [abs(v) for v in values if v is not None]
+            return bool(vals) and max(vals) <= limit
+
+        return {
+            "median ≤ 3 cm": all_ok([w.median_error_m for w in found], 0.03),
+            "catenary ≤ 2 cm": all_ok([w.catenary_rms_m for w in found], 0.02),
+            "sag ≤ 5 cm": all_ok([w.sag_error_m for w in found], 0.05),
+            f"completeness ≥ {100 * min_completeness:.0f} %": all(
+                w.completeness >= min_completeness for w in self.wires
+            ),
+            "all wires found": all(w.found for w in self.wires),
+            "no ghost": self.ghost_wires == 0,
+            "outliers < 1 %": self.outlier_share < 0.01,
+        }
+
+
+def _true_sag_over(truth: TrueWire, fitted: FittedWireLike) -> float:
+    """The true wire's sag from the chord between its points at the fitted wire's ends."""
+    ends = fitted.points(np.asarray(fitted.s_range, np.float64))
+    d = truth.direction_xy
+    s_ends = (ends[:, :2] - np.asarray(truth.attach_a[:2])) @ d
+    s = np.linspace(s_ends.min(), s_ends.max(), 2001)
+    z = truth.z_at(s)
+    chord = z[0] + (z[-1] - z[0]) * (s - s[0]) / max(s[-1] - s[0], 1e-12)
+    return float(np.max(chord - z))
+
+
+def evaluate(
+    points: F64, fitted: Sequence[FittedWireLike], truth: Sequence[TrueWire]
+) -> Evaluation:
+    """Score measured points and fitted wires against the true wires."""
+    points = np.asarray(points, np.float64).reshape(-1, 3)
+    polylines = [t.polyline(0.02) for t in truth]
+    dist = (
+        np.stack([distance_to_polyline(points, pl) for pl in polylines])
+        if len(points)
+        else np.zeros((len(truth), 0))
+    )
+    nearest = np.argmin(dist, axis=0) if len(points) else np.zeros(0, int)
+    dmin = dist.min(axis=0) if len(points) else np.zeros(0)
+    tree = cKDTree(points) if len(points) else None
+    fitted_polys = [f.polyline(0.1) for f in fitted]
+    fit_dist = [np.stack([distance_to_polyline(fp, pl) for pl in polylines]) for fp in fitted_polys]
+    scores = []
+    for k, t in enumerate(truth):
+        s = np.arange(2.0, t.length_m - 2.0, 0.05)
+        samples = t.points(s)
+        completeness = float(np.mean(tree.query(samples)[0] <= 0.10)) if tree else 0.0
+        mine = (nearest == k) & (dmin <= 0.30)
+        d = dmin[mine]
+        match = [
+            j
+            for j, fd in enumerate(fit_dist)
+            if np.median(fd[k]) < 0.30 and np.argmin(np.median(fd, axis=1)) == k
+        ]
+        cat = sag_err = None
+        if match:
+            j = min(match, key=lambda j: np.median(fit_dist[j][k]))
+            cat = float(np.sqrt(np.mean(fit_dist[j][k] ** 2)))
+            sag_err = float(fitted[j].sag() - _true_sag_over(t, fitted[j]))
+        scores.append(
+            WireScore(
+                wire_id=t.wire_id,
+                kind=t.kind,
+                completeness=completeness,
+                found=completeness >= 0.5,
+                num_points=int(mine.sum()),
+                median_error_m=float(np.median(d)) if len(d) else float("nan"),
+                rms_error_m=float(np.sqrt(np.mean(d**2))) if len(d) else float("nan"),
+                catenary_rms_m=cat,
+                sag_error_m=sag_err,
+            )
+        )
+    ghosts = sum(1 for fd in fit_dist if np.mean(fd.min(axis=0) > 0.30) > 0.5)
+    outliers = float(np.mean(dmin > 0.30)) if len(points) else 0.0
+    return Evaluation(scores, ghosts, outliers, len(points))

@@ -1,0 +1,164 @@
+"""Outputs: wires.json, wires.ply, wire_points.ply (and primitives.ply), written atomically.
+
+Point clouds go through open3d's tensor API so that the per-point ``wire_id`` label is a
+PLY property that open3d (and CloudCompare, PDAL, …) read back. Each file is written to a
+temporary name in the output folder and renamed into place only when complete, so a
+failed run never leaves a half-written file, and a previous run's file survives a failed
+rewrite.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import math
+import os
+import tempfile
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+import open3d as o3d
+
+from .wires import FittedWire
+
+logger = logging.getLogger(__name__)
+
+F64 = npt.NDArray[np.float64]
+
+_PALETTE = np.array(
+    [
+        [230, 25, 75],
+        [60, 180, 75],
+        [255, 225, 25],
+        [0, 130, 200],
+        [245, 130, 48],
+        [145, 30, 180],
+        [70, 240, 240],
+        [240, 50, 230],
+        [210, 245, 60],
+        [250, 190, 212],
+        [0, 128, 128],
+        [220, 190, 255],
+        [170, 110, 40],
+        [128, 0, 0],
+        [170, 255, 195],
+    ],
+    dtype=np.uint8,
+)
+
+
+def wire_colors(ids: npt.ArrayLike) -> npt.NDArray[np.uint8]:
+    """(N,) wire ids → (N, 3) uint8 colours: a fixed palette per id, grey for -1."""
+    ids = np.asarray(ids, np.int64)
+    out = _PALETTE[np.mod(ids, len(_PALETTE))]
+    out[ids < 0] = 128
+    return out
+
+
+def write_atomic(path: Path | str, write_fn: Callable[[Path], Any]) -> Path:
+    """Call ``write_fn(tmp_path)`` and move the result to ``path`` only if it succeeded."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp_name = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=path.suffix, dir=path.parent)
+    os.close(fd)
+    tmp = Path(tmp_name)
+    try:
+        write_fn(tmp)
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+    return path
+
+
+def write_point_cloud(
+    path: Path | str,
+    pts: F64,
+    colors: npt.NDArray[Any] | None = None,
+    labels: npt.NDArray[Any] | None = None,
+) -> Path:
+    """Binary PLY with xyz (float64), optional uint8 colours and an int32 ``wire_id``."""
+    pts = np.asarray(pts, np.float64).reshape(-1, 3)
+    pcd = o3d.t.geometry.PointCloud(o3d.core.Tensor(pts, o3d.core.float64))
+    if colors is not None:
+        c = np.asarray(colors)
+        c = c.astype(np.float64) / 255.0 if c.dtype == np.uint8 else c.astype(np.float64)
+        pcd.point.colors = o3d.core.Tensor(c.reshape(-1, 3), o3d.core.float64)
+    if labels is not None:
+        pcd.point.wire_id = o3d.core.Tensor(
+            np.asarray(labels, np.int32).reshape(-1, 1), o3d.core.int32
+        )
+
+    def write(tmp: Path) -> None:
+        if not o3d.t.io.write_point_cloud(str(tmp), pcd, write_ascii=False):
+            raise OSError(f"{path}: open3d could not write the point cloud")
+
+    return write_atomic(path, write)
+
+
+def read_point_cloud(
+    path: Path | str,
+) -> tuple[F64, npt.NDArray[np.uint8] | None, npt.NDArray[np.int32] | None]:
+    """(points, colours or None, wire ids or None) of a PLY written by :func:`write_point_cloud`."""
+    pcd = o3d.t.io.read_point_cloud(str(path))
+    pts = pcd.point.positions.numpy().astype(np.float64)
+    colors = labels = None
+    if "colors" in pcd.point:
+        c = pcd.point.colors.numpy()
+        colors = (np.clip(c, 0, 1) * 255 + 0.5).astype(np.uint8) if c.dtype != np.uint8 else c
+    if "wire_id" in pcd.point:
+        labels = pcd.point.wire_id.numpy().reshape(-1).astype(np.int32)
+    return pts, colors, labels
+
+
+def _finite(obj: Any) -> Any:
+    """Replace NaN/inf by None so the JSON is strict."""
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    if isinstance(obj, dict):
+        return {k: _finite(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [_finite(v) for v in obj]
+    if isinstance(obj, np.generic):
+        return _finite(obj.item())
+    return obj
+
+
+def export_results(
+    output_path: Path,
+    *,
+    wires: Sequence[FittedWire],
+    points: F64,
+    labels: npt.NDArray[np.int64],
+    primitives: F64 | None,
+    metadata: dict[str, Any],
+    ground_height: Callable[[F64], F64] | None = None,
+    sample_step: float = 0.1,
+) -> dict[str, Path]:
+    """Write the output contract of DESIGN.md into ``output_path``; returns the files."""
+    output_path = Path(output_path)
+    output_path.mkdir(parents=True, exist_ok=True)
+    out: dict[str, Path] = {}
+    doc = {**metadata, "wires": [w.to_json(ground_height, sample_step) for w in wires]}
+    text = json.dumps(_finite(doc), allow_nan=False)
+    out["wires.json"] = write_atomic(output_path / "wires.json", lambda p: p.write_text(text))
+    dense = [w.polyline(sample_step) for w in wires]
+    ids = (
+        np.concatenate([np.full(len(d), w.wire_id) for d, w in zip(dense, wires, strict=True)])
+        if wires
+        else np.zeros(0, np.int64)
+    )
+    dense_pts = np.concatenate(dense) if dense else np.zeros((0, 3))
+    out["wires.ply"] = write_point_cloud(
+        output_path / "wires.ply", dense_pts, wire_colors(ids), ids
+    )
+    out["wire_points.ply"] = write_point_cloud(
+        output_path / "wire_points.ply", points, wire_colors(labels), labels
+    )
+    if primitives is not None:
+        out["primitives.ply"] = write_point_cloud(output_path / "primitives.ply", primitives)
+    logger.info("export: %s", ", ".join(str(p) for p in out.values()))
+    return out
