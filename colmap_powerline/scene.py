@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 import numpy.typing as npt
 import pycolmap
+from PIL import Image
 from scipy.interpolate import LinearNDInterpolator, NearestNDInterpolator
 
 from .errors import InputError
@@ -319,6 +320,20 @@ def load_scene(model_path: Path | str, image_path: Path | str, check_images: boo
         first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         raise InputError(f"{model_path}: cannot read the COLMAP model: {first}") from exc
 
+    for camera_id, cam in rec.cameras.items():
+        params = np.asarray(cam.params, dtype=np.float64)
+        if (
+            cam.width <= 1
+            or cam.height <= 1
+            or not np.isfinite(params).all()
+            or cam.mean_focal_length() <= 0
+            or not cam.verify_params()
+        ):
+            raise InputError(
+                f"{model_path}: camera {camera_id} is invalid ({cam.model_name} "
+                f"{cam.width}x{cam.height}, params {params.tolist()}): corrupt or truncated "
+                "cameras file?"
+            )
     images: list[SceneImage] = []
     missing: list[str] = []
     for image_id in rec.reg_image_ids():
@@ -347,6 +362,18 @@ def load_scene(model_path: Path | str, image_path: Path | str, check_images: boo
             f"{image_path / missing[0]}: image named by the model is missing on disk{more}"
         )
     images.sort(key=lambda im: im.name)
+    if check_images:  # one header read: does the model describe these files?
+        first = images[0]
+        try:
+            with Image.open(first.path) as f:
+                size = f.size
+        except Exception as exc:
+            raise InputError(f"{first.path}: cannot read the image ({exc})") from exc
+        if size != (first.width, first.height):
+            raise InputError(
+                f"{first.path}: image is {size[0]}x{size[1]} px but its camera in {model_path} "
+                f"is {first.width}x{first.height} (images from another model or undistorted?)"
+            )
 
     pts = list(rec.points3D.values())
     scene = Scene(

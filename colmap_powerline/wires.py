@@ -60,7 +60,7 @@ def fit_catenary(
     """Robust catenary ``z = z0 + a (cosh((s - s0) / a) - 1)`` through (s, z) samples.
 
     Returns:
-        a, s0, z0 and the (N,) residuals. Near-straight wires get a large ``a`` (≤ 1e6).
+        a, s0, z0 and the (N,) residuals. Near-straight wires get a large ``a`` (≤ 1e7).
     """
     s, z = np.asarray(s, np.float64), np.asarray(z, np.float64)
     if s.shape != z.shape or s.ndim != 1:
@@ -68,7 +68,7 @@ def fit_catenary(
     if len(s) < 3:
         raise ValueError(f"need at least 3 points to fit a catenary, got {len(s)}")
     coef = np.polyfit(s, z, 2)
-    curv = max(2 * coef[0], 1e-6)
+    curv = max(2 * coef[0], 1e-7)
     s0 = -coef[1] / (2 * coef[0]) if coef[0] > 1e-9 else float(np.mean(s))
     s0 = float(np.clip(s0, s.min() - 1e4, s.max() + 1e4))
     z0 = float(np.polyval(coef, s0)) if coef[0] > 1e-9 else float(np.min(z))
@@ -78,7 +78,7 @@ def fit_catenary(
         return _catenary(s, x[0], x[1], x[2]) - z
 
     x0 = np.array([min(curv, k_max * 0.99), s0, z0])
-    lo = [1e-6, s.min() - 1e4, -np.inf]
+    lo = [1e-7, s.min() - 1e4, -np.inf]
     hi = [k_max, s.max() + 1e4, np.inf]
     x0 = np.clip(x0, np.array(lo) + 1e-12, np.array(hi) - 1e-12)
     sol = least_squares(

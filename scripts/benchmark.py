@@ -27,7 +27,6 @@ import cv2
 
 def _run_one(span_dir: Path, out_dir: Path, overrides: dict, queue: mp.Queue) -> None:
     from colmap_powerline.evaluate import evaluate
-
     from colmap_powerline.pipeline import ReconstructionOptions, reconstruct
     from colmap_powerline.synthetic import load_true_wires
 

@@ -1,0 +1,183 @@
+"""The scene loader against pycolmap, and the synthetic span against its own truth."""
+
+from __future__ import annotations
+
+import shutil
+
+import cv2
+import numpy as np
+import pycolmap
+import pytest
+
+from colmap_powerline import InputError, load_scene
+from colmap_powerline.synthetic import (
+    SyntheticSpanOptions,
+    Terrain,
+    build_span,
+    load_true_wires,
+    read_exif_gps,
+)
+
+
+def test_projection_matches_pycolmap(small_span, small_scene):
+    rec = pycolmap.Reconstruction(small_span.sparse_gt)
+    pts = small_scene.pts_in_world
+    for im in small_scene.images[:5]:
+        image = rec.image(im.image_id)
+        cam = rec.camera(image.camera_id)
+        pose = image.cam_from_world()
+        pts_in_cam = pts @ pose.rotation.matrix().T + pose.translation
+        front = pts_in_cam[:, 2] > 0
+        expected = cam.img_from_cam(pts_in_cam[front])
+        uv, depth, _ = im.project(pts)
+        ok = np.isfinite(uv[front]).all(axis=1)
+        assert ok.sum() > 500
+        assert np.abs(uv[front][ok] - expected[ok]).max() < 1e-6
+        # Pixel → ray → point → pixel.
+        rays = im.rays_in_world(uv[front][ok][:100])
+        back, _, _ = im.project(im.center_in_world + 37.0 * rays)
+        assert np.abs(back - uv[front][ok][:100]).max() < 1e-6
+
+
+@pytest.mark.parametrize(
+    "model,params",
+    [
+        ("PINHOLE", [500, 505, 320, 240]),
+        ("SIMPLE_RADIAL", [500, 320, 240, -0.05]),
+        ("RADIAL", [500, 320, 240, -0.05, 0.01]),
+        ("OPENCV_FISHEYE", [500, 505, 320, 240, 0.01, -0.01, 0.001, 0.0]),
+        ("FULL_OPENCV", [500, 505, 320, 240, -0.05, 0.01, 0.001, -0.001, 0.001, 0, 0, 0]),
+    ],
+)
+def test_any_camera_model_projects_like_pycolmap(tmp_path, model, params):
+    rec = pycolmap.Reconstruction()
+    cam = pycolmap.Camera(model=model, width=640, height=480, params=params, camera_id=1)
+    rec.add_camera_with_trivial_rig(cam)
+    img = pycolmap.Image(name="a.jpg", camera_id=1, image_id=1)
+    rec.add_image_with_trivial_frame(
+        img, pycolmap.Rigid3d(pycolmap.Rotation3d(np.eye(3)), np.array([0.1, -0.2, 3.0]))
+    )
+    rec.write_text(tmp_path)
+    (tmp_path / "images").mkdir()
+    (tmp_path / "images" / "a.jpg").write_bytes(b"")
+    scene = load_scene(tmp_path, tmp_path / "images", check_images=False)
+    rng = np.random.default_rng(0)
+    pts = rng.uniform([-1, -1, 1], [1, 1, 3], (50, 3))
+    uv, _, _ = scene.images[0].project(pts)
+    expected = cam.img_from_cam(pts + [0.1, -0.2, 3.0])
+    assert np.nanmax(np.abs(uv - expected)) < 1e-6
+
+
+def test_binary_and_text_models_agree(small_span, tmp_path):
+    pycolmap.Reconstruction(small_span.sparse_gt).write_text(tmp_path)
+    a = load_scene(small_span.sparse_gt, small_span.images)
+    b = load_scene(tmp_path, small_span.images)
+    assert [im.name for im in a.images] == [im.name for im in b.images]
+    np.testing.assert_allclose(a.centers_in_world, b.centers_in_world, atol=1e-9)
+    np.testing.assert_allclose(
+        np.sort(a.pts_in_world, axis=0), np.sort(b.pts_in_world, axis=0), atol=1e-9
+    )
+
+
+def test_ground_height_and_helpers(small_span, small_scene):
+    terrain = Terrain.load(small_span.terrain)
+    rng = np.random.default_rng(0)
+    xy = rng.uniform(-40, 40, (300, 2))
+    err = small_scene.ground_height(xy) - terrain.height(xy)
+    assert np.median(np.abs(err)) < 0.3  # tower points are ignored; measured ≈ 0.05 m
+    im = small_scene.images[0]
+    assert im.gsd_at_depth(50.0) == pytest.approx(50.0 / im.focal_px)
+    wire = load_true_wires(small_span.truth_wires)[0]
+    mid = wire.points(np.array([wire.length_m / 2]))[0]
+    seeing = {v.name for v in small_scene.images_seeing(mid)}
+    expected = {v.name for v in small_scene.images if v.project(mid[None])[2][0]}
+    assert seeing == expected and len(seeing) >= 3
+    assert small_scene.visibility(np.zeros((4, 3))).shape == (len(small_scene), 4)
+
+
+def test_bad_models_give_one_line_errors(small_span, tmp_path):
+    with pytest.raises(InputError, match="does not exist"):
+        load_scene(tmp_path / "missing", small_span.images)
+    with pytest.raises(InputError, match="not a COLMAP model"):
+        load_scene(tmp_path, small_span.images)
+    broken = tmp_path / "broken"
+    shutil.copytree(small_span.sparse_gt, broken)
+    (broken / "cameras.bin").write_bytes((broken / "cameras.bin").read_bytes()[:10])
+    with pytest.raises(InputError, match="camera 1 is invalid"):
+        load_scene(broken, small_span.images)
+    images = tmp_path / "images"
+    shutil.copytree(small_span.images, images)
+    (images / "DJI_0005.JPG").unlink()
+    with pytest.raises(InputError, match="DJI_0005.JPG: image named by the model is missing"):
+        load_scene(small_span.sparse_gt, images)
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    rec = pycolmap.Reconstruction()
+    rec.add_camera_with_trivial_rig(
+        pycolmap.Camera(model="PINHOLE", width=10, height=10, params=[5, 5, 5, 5], camera_id=1)
+    )
+    rec.write_binary(empty)
+    with pytest.raises(InputError, match="no registered images"):
+        load_scene(empty, images)
+
+
+def test_true_wires_land_on_bright_rendered_pixels(small_span, small_scene):
+    """Profile across each conductor, averaged along it: a clear peak at offset 0."""
+    wires = load_true_wires(small_span.truth_wires)
+    offsets = np.arange(-4, 5)
+    profile = np.zeros(len(offsets))
+    for view in small_scene.images[8:16]:
+        gray = cv2.imread(str(view.path), cv2.IMREAD_GRAYSCALE).astype(np.float32)
+        for w in wires:
+            if w.kind != "conductor":
+                continue
+            uv, _, ok = view.project(w.points(np.arange(3, w.length_m - 3, 0.2)))
+            ok[:-1] &= ok[1:]
+            if ok.sum() < 20:
+                continue
+            t = np.gradient(uv, axis=0)[ok]
+            t /= np.linalg.norm(t, axis=1, keepdims=True)
+            n = np.c_[-t[:, 1], t[:, 0]]
+            for k, o in enumerate(offsets):
+                p = (uv[ok] + o * n - 0.5).astype(np.float32)
+                profile[k] += cv2.remap(gray, p[:, 0:1], p[:, 1:2], cv2.INTER_LINEAR).mean()
+    profile /= profile.mean()
+    assert int(np.argmax(profile)) == 4  # the peak is on the true wire
+    contrast = profile[4] - profile[[0, 1, 7, 8]].mean()
+    assert contrast > 0.02  # measured ≈ 0.06 of the mean grey level at 0.35 px wire width
+    assert profile[0] < profile[4] and profile[8] < profile[4]
+
+
+def test_exif_gps_and_model_noise(small_span, small_scene):
+    import json
+
+    origin = json.loads(small_span.truth_wires.read_text())["origin_wgs84"]
+    gps = pycolmap.GPSTransform(pycolmap.GPSTransformEllipsoid.WGS84)
+    lla = np.array([read_exif_gps(im.path) for im in small_scene.images])
+    enu = gps.ellipsoid_to_enu(lla, *origin)
+    err = enu - small_scene.centers_in_world
+    rms_h = np.sqrt(np.mean(np.sum(err[:, :2] ** 2, axis=1) / 2))
+    assert 0.5 < rms_h < 3.0  # simulated σ 1.5 m per axis
+    assert np.abs(err[:, 2]).max() < 4 * 3.0
+    perturbed = load_scene(small_span.sparse, small_span.images)
+    moved = np.linalg.norm(perturbed.centers_in_world - small_scene.centers_in_world, axis=1)
+    assert 0.001 < np.median(moved) < 0.1
+    rec = pycolmap.Reconstruction(small_span.sparse)
+    assert 0.05 < rec.compute_mean_reprojection_error() < 1.0
+    assert pycolmap.Reconstruction(small_span.sparse_gt).compute_mean_reprojection_error() < 1e-3
+
+
+def test_truth_is_self_consistent_and_deterministic():
+    a = build_span(SyntheticSpanOptions(scale=0.05, show_progress=False))
+    b = build_span(SyntheticSpanOptions(scale=0.05, show_progress=False))
+    c = build_span(SyntheticSpanOptions(scale=0.05, seed=1, show_progress=False))
+    assert [w.to_json() for w in a.wires] == [w.to_json() for w in b.wires]
+    assert [w.catenary_a_m for w in a.wires] != [w.catenary_a_m for w in c.wires]
+    for w in a.wires:
+        assert w.z_at(0.0) == pytest.approx(w.attach_a[2], abs=1e-9)
+        assert w.z_at(w.length_m) == pytest.approx(w.attach_b[2], abs=1e-9)
+        level = (w.attach_a[2] - w.attach_b[2]) == 0
+        if level:
+            assert w.sag_m() == pytest.approx(w.length_m**2 / (8 * w.catenary_a_m), rel=0.01)
+    assert len(a.wires) == 8 and sum(w.kind == "shield" for w in a.wires) == 2
+    assert len(a.views) == len(b.views) > 10

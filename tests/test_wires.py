@@ -1,0 +1,98 @@
+"""Splitting verified points into wires and fitting catenaries."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from colmap_powerline.synthetic import SyntheticSpanOptions, TrueWire, build_span
+from colmap_powerline.wires import FittedWire, fit_catenary, split_wires
+
+
+@pytest.fixture(scope="module")
+def truth() -> list[TrueWire]:
+    return build_span(SyntheticSpanOptions(scale=0.05, show_progress=False)).wires
+
+
+def _noisy_points(truth, rng, gaps=True):
+    pts = []
+    for w in truth:
+        s = np.arange(2.0, w.length_m - 2.0, 0.03)
+        if gaps:  # a missed stretch per wire
+            start = rng.uniform(10, 80)
+            s = s[(s < start) | (s > start + rng.uniform(3, 8))]
+        pts.append(w.points(s) + rng.normal(0, 0.02, (len(s), 3)))
+    pts.append(truth[0].points(np.arange(30, 50, 0.05)) + 0.01)  # a second pair's duplicate
+    core = np.concatenate(pts)
+    lo, hi = core.min(axis=0), core.max(axis=0)
+    outliers = rng.uniform(lo - 5, hi + 5, (int(0.02 * len(core)), 3))
+    blob = core[0] + np.array([3.0, 3.0, -6.0]) + rng.normal(0, 0.05, (200, 3))
+    return np.concatenate([core, outliers, blob])
+
+
+def test_fit_catenary_recovers_parameters():
+    rng = np.random.default_rng(1)
+    s = np.linspace(0, 100, 400)
+    for a, s0, z0 in [(600.0, 48.0, 20.0), (900.0, 20.0, 31.0)]:  # level and inclined spans
+        z = z0 + a * (np.cosh((s - s0) / a) - 1) + rng.normal(0, 0.02, len(s))
+        fa, fs0, fz0, res = fit_catenary(s, z)
+        assert abs(fa - a) / a < 0.05 and abs(fs0 - s0) < 1.0 and abs(fz0 - z0) < 0.02
+        assert res.shape == s.shape and np.sqrt(np.mean(res**2)) < 0.025
+    fa, _, _, res = fit_catenary(s, np.full(len(s), 12.0))  # straight and level
+    assert fa > 1e4 and np.abs(res).max() < 2e-4
+    with pytest.raises(ValueError, match="at least 3"):
+        fit_catenary(s[:2], s[:2])
+
+
+def test_split_separates_stacked_and_side_by_side_wires(truth):
+    rng = np.random.default_rng(0)
+    pts = _noisy_points(truth, rng)
+    wires = split_wires(pts, 35.0)
+    assert len(wires) == len(truth) == 8
+    assert all(isinstance(w, FittedWire) for w in wires)
+    assert [w.wire_id for w in wires] == list(range(8))
+    matched = set()
+    for w in wires:
+        poly = w.polyline(0.5)
+        t = min(
+            truth,
+            key=lambda t: np.median(
+                np.abs(poly[:, 2] - t.z_at((poly[:, :2] - t.attach_a[:2]) @ t.direction_xy))
+                + np.abs(
+                    (poly[:, :2] - t.attach_a[:2])
+                    @ np.array([t.direction_xy[1], -t.direction_xy[0]])
+                )
+            ),
+        )
+        matched.add(t.wire_id)
+        s = (poly[:, :2] - t.attach_a[:2]) @ t.direction_xy
+        dz = poly[:, 2] - t.z_at(s)
+        assert np.sqrt(np.mean(dz**2)) < 0.02  # measured ≈ 0.3 cm
+        assert w.s_range[1] - w.s_range[0] > 90  # the gap was bridged: one wire, not two
+        assert w.rms_residual < 0.04
+        assert len(w.polyline(0.1)) == pytest.approx((w.s_range[1] - w.s_range[0]) / 0.1, abs=2)
+    assert matched == {t.wire_id for t in truth}
+
+
+def test_split_without_azimuth_hint(truth):
+    pts = _noisy_points(truth, np.random.default_rng(2), gaps=False)
+    assert len(split_wires(pts)) == 8
+
+
+def test_sag_and_json(truth):
+    t = truth[0]
+    pts = t.points(np.arange(0, t.length_m, 0.05))
+    (w,) = split_wires(pts, 35.0)
+    assert w.sag() == pytest.approx(t.sag_m(), abs=0.01)
+    d = w.to_json(lambda xy: np.zeros(len(xy)))
+    assert d["clearance_m"] == pytest.approx(w.lowest_point()[2], abs=0.01)
+    assert d["num_points"] == len(pts) and len(d["polyline"]) > 900
+    assert set(d) >= {"id", "catenary", "plane", "ends", "sag_m", "lowest_point", "rms_m"}
+
+
+def test_bad_input():
+    with pytest.raises(ValueError, match="shape"):
+        split_wires(np.zeros((10, 2)))
+    assert split_wires(np.zeros((5, 3))) == []
+    rng = np.random.default_rng(3)
+    assert split_wires(rng.uniform(0, 50, (3000, 3)), 35.0) == []  # noise is not a wire
