@@ -75,7 +75,7 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     )
     t_run = time.perf_counter() - t0
     truth = load_true_wires(span_dir / "truth" / "wires.json")
-    ev = evaluate(result.verified.pts_in_world, result.wires, truth)
+    ev = evaluate(result.verified.pts_in_world, result.wires, truth)  # type: ignore[arg-type]
     print(
         f"\nsynthetic span: {span_dir} (rendered in {t_render:.0f} s; "
         f"{len(result.scene)} images, {args.background}, flight {args.flight})"
@@ -108,7 +108,7 @@ def _add_option_flags(p: argparse.ArgumentParser, options_cls: type) -> None:
             continue
         group = p.add_argument_group(f"{stage.name} options")
         hints = typing.get_type_hints(stage_cls)
-        default_obj = stage_cls()
+        default_obj = stage_cls()  # type: ignore[operator]
         for f in dataclasses.fields(stage_cls):
             hint = hints[f.name]
             optional = isinstance(hint, types.UnionType) and type(None) in typing.get_args(hint)

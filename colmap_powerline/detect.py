@@ -152,7 +152,7 @@ def detect_wires(
     smooth = cv2.GaussianBlur(response, (0, 0), 0.7)
     a = np.deg2rad(direction_deg)
     step = options.side_offset_px * np.array([-np.sin(a), np.cos(a)])
-    for sx, sy in (step, -step):
+    for sx, sy in (tuple(step), tuple(-step)):
         # nb[y, x] = smooth[y + sy, x + sx], sub-pixel.
         shift = np.array([[1.0, 0.0, -sx], [0.0, 1.0, -sy]])
         nb = cv2.warpAffine(

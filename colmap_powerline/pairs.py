@@ -44,7 +44,7 @@ class PairsOptions:
     min_base_height: float = 0.15  # base/height ratio range of useful pairs
     max_base_height: float = 1.6
     target_base_height: float = 0.7  # ratios beyond this gain no score
-    max_pairs: int = 4  # pairs used at most
+    max_pairs: int = 6  # pairs used at most
     pairs_per_point: int = 2  # how many pairs should cover each part of the corridor
     border_margin_frac: float = 0.05  # corridor points this close to an image border do not count
 
@@ -242,8 +242,16 @@ def estimate_corridor(scene: Scene, options: PairsOptions | None = None) -> Wire
     while hi < len(hist) - 1 and hist[hi + 1] > 0.2 * hist[peak]:
         hi += 1
     c_lo, c_hi = bins[lo], bins[hi + 1]
-    in_band = (c >= c_lo) & (c <= c_hi)
-    s_lo, s_hi = np.quantile(s[in_band], [0.01, 0.99])
+    # Along the line the wires may run through every image: take the whole stretch that
+    # at least two images see (line pixels alone undercount it where wires are faint).
+    c_band = 0.5 * (c_lo + c_hi)
+    s_all = np.arange(s.min() - 200.0, s.max() + 200.0, 1.0)
+    probe = np.c_[c_band * normal + s_all[:, None] * direction, np.full(len(s_all), height)]
+    seen = sum(v.project(probe)[2].astype(int) for v in scene.images)
+    if (seen >= 2).any():
+        s_lo, s_hi = s_all[seen >= 2].min(), s_all[seen >= 2].max()
+    else:
+        s_lo, s_hi = np.quantile(s[(c >= c_lo) & (c <= c_hi)], [0.01, 0.99])
     c_mid, s_mid = 0.5 * (c_lo + c_hi), 0.5 * (s_lo + s_hi)
     corridor = WireCorridor(
         azimuth_deg=azimuth,
@@ -336,7 +344,8 @@ def select_pairs(
     count = np.zeros(len(line))
     chosen: list[ImagePair] = []
     while len(chosen) < options.max_pairs:
-        need = np.clip(options.pairs_per_point - count, 0, None) / options.pairs_per_point
+        # First cover every part of the corridor once, then add redundancy.
+        need = np.where(count == 0, 1.0, np.where(count < options.pairs_per_point, 0.25, 0.0))
         gains = [
             p.score / max(p.coverage, 1.0) * float((need * common).sum())
             for p, common in candidates

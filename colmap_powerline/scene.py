@@ -363,16 +363,16 @@ def load_scene(model_path: Path | str, image_path: Path | str, check_images: boo
         )
     images.sort(key=lambda im: im.name)
     if check_images:  # one header read: does the model describe these files?
-        first = images[0]
+        im0 = images[0]
         try:
-            with Image.open(first.path) as f:
+            with Image.open(im0.path) as f:
                 size = f.size
         except Exception as exc:
-            raise InputError(f"{first.path}: cannot read the image ({exc})") from exc
-        if size != (first.width, first.height):
+            raise InputError(f"{im0.path}: cannot read the image ({exc})") from exc
+        if size != (im0.width, im0.height):
             raise InputError(
-                f"{first.path}: image is {size[0]}x{size[1]} px but its camera in {model_path} "
-                f"is {first.width}x{first.height} (images from another model or undistorted?)"
+                f"{im0.path}: image is {size[0]}x{size[1]} px but its camera in {model_path} "
+                f"is {im0.width}x{im0.height} (images from another model or undistorted?)"
             )
 
     pts = list(rec.points3D.values())

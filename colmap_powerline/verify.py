@@ -126,6 +126,19 @@ def _wire_offsets(response: np.ndarray, uv: F64, normal: F64, reach: float) -> F
     return np.where(inner, steps[kc] + np.clip(vertex, -0.5, 0.5), np.nan)
 
 
+def _roughly_in_view(view: SceneImage, pts: F64, margin: float = 0.25) -> npt.NDArray[np.bool_]:
+    """(N,) points in front of the camera whose pinhole projection falls within the image
+    grown by ``margin`` of its size (a superset of the exact test, for culling)."""
+    pts_in_cam = view.to_cam(pts)
+    z = pts_in_cam[:, 2]
+    f = view.focal_px
+    with np.errstate(divide="ignore", invalid="ignore"):
+        u = f * pts_in_cam[:, 0] / z + view.width / 2
+        v = f * pts_in_cam[:, 1] / z + view.height / 2
+    mw, mh = margin * view.width, margin * view.height
+    return (z > 0) & (u > -mw) & (u < view.width + mw) & (v > -mh) & (v < view.height + mh)
+
+
 def _projection_jacobian(view: SceneImage, pts: F64) -> F64:
     """(N, 2, 3) d(pixel)/d(world point), pinhole approximation of the lens."""
     pts_in_cam = view.to_cam(pts)
@@ -192,12 +205,16 @@ def verify_primitives(
         tqdm(scene.images, desc="verify", unit="img", disable=not show_progress)
     ):
         own = np.array([view.name in names for names in pair_images])
-        uv, _, inside = view.project(pts)
-        inside &= ~own[pair_of]
-        idx = np.flatnonzero(inside)
+        # Cheap pinhole pre-cull with a wide margin, then the exact lens model.
+        cand = np.flatnonzero(~own[pair_of] & _roughly_in_view(view, pts))
+        if len(cand) == 0:
+            continue
+        uv_c, _, inside_c = view.project(pts[cand])
+        idx = cand[inside_c]
         if len(idx) == 0:
             continue
-        px = np.floor(uv[idx]).astype(np.int64)  # pixel containing the projection
+        uv = uv_c[inside_c]  # (len(idx), 2)
+        px = np.floor(uv).astype(np.int64)  # pixel containing the projection
         x0 = max(int(px[:, 0].min()) - options.margin_px, 0)
         y0 = max(int(px[:, 1].min()) - options.margin_px, 0)
         x1 = min(int(px[:, 0].max()) + options.margin_px + 1, view.width)
@@ -223,13 +240,14 @@ def verify_primitives(
             a = np.deg2rad(direction)
             normal = np.array([-np.sin(a), np.cos(a)])
             offset = _wire_offsets(
-                wires.response, uv[hid] - [x0, y0], normal, options.tolerance_px + 1
+                wires.response, uv[hit] - [x0, y0], normal, options.tolerance_px + 1
             )
             ok = np.isfinite(offset)
             hid, offset = hid[ok], offset[ok]
             row = np.einsum("j,njk->nk", normal, _projection_jacobian(view, pts[hid]))  # (n, 3)
-            np.add.at(normal_eq, hid, row[:, :, None] * row[:, None, :])
-            np.add.at(rhs, hid, row * offset[:, None])
+            # hid is unique within one view: plain fancy-index accumulation is exact.
+            normal_eq[hid] += row[:, :, None] * row[:, None, :]
+            rhs[hid] += row * offset[:, None]
     need = np.maximum(np.ceil(options.min_hit_ratio * views - 1e-9), 1).astype(np.int32)
     keep = (views >= options.min_views) & (hits >= need)
     keep &= crossing_hits >= options.min_crossing_hits
