@@ -151,8 +151,8 @@ def detect_wires(
     # lobes are as strong as its centre pixels) still has a stronger centre.
     smooth = cv2.GaussianBlur(response, (0, 0), 0.7)
     a = np.deg2rad(direction_deg)
-    step = options.side_offset_px * np.array([-np.sin(a), np.cos(a)])
-    for sx, sy in (tuple(step), tuple(-step)):
+    sx0, sy0 = -options.side_offset_px * np.sin(a), options.side_offset_px * np.cos(a)
+    for sx, sy in ((sx0, sy0), (-sx0, -sy0)):
         # nb[y, x] = smooth[y + sy, x + sx], sub-pixel.
         shift = np.array([[1.0, 0.0, -sx], [0.0, 1.0, -sy]])
         nb = cv2.warpAffine(

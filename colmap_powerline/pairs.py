@@ -247,7 +247,7 @@ def estimate_corridor(scene: Scene, options: PairsOptions | None = None) -> Wire
     c_band = 0.5 * (c_lo + c_hi)
     s_all = np.arange(s.min() - 200.0, s.max() + 200.0, 1.0)
     probe = np.c_[c_band * normal + s_all[:, None] * direction, np.full(len(s_all), height)]
-    seen = sum(v.project(probe)[2].astype(int) for v in scene.images)
+    seen = np.sum([v.project(probe)[2] for v in scene.images], axis=0)
     if (seen >= 2).any():
         s_lo, s_hi = s_all[seen >= 2].min(), s_all[seen >= 2].max()
     else:
