@@ -32,7 +32,7 @@ class Polarity(StrEnum):
 class DetectOptions:
     template_length_px: int = 15  # along the wire (paper: 9; 15 measured better on thin wires)
     side_offset_px: int = 1  # distance of the −1 taps from the centre tap (paper: 1)
-    angle_spread_deg: float = 4.0  # also try directions within ± this of the given one
+    angle_spread_deg: float = 2.0  # also try directions within ± this of the given one
     angle_step_deg: float = 2.0
     polarity: Polarity = Polarity.BOTH
     threshold_k: float = 2.0  # wire pixel: |response| > k × local mean |response|
@@ -74,6 +74,8 @@ class WireMask:
 
 def _to_gray(image: np.ndarray) -> F32:
     if image.ndim == 3 and image.shape[2] == 3:
+        if image.dtype == np.uint8:
+            return cv2.cvtColor(image, cv2.COLOR_RGB2GRAY).astype(np.float32)
         return cv2.cvtColor(image.astype(np.float32), cv2.COLOR_RGB2GRAY)
     if image.ndim == 2:
         return image.astype(np.float32)
@@ -132,24 +134,31 @@ def detect_wires(
         direction_deg + np.arange(-spread, spread + 1e-9, step) if spread > 0 else [direction_deg]
     )
     response = line_response(gray, float(angles[0]), options)
+    magnitude = np.abs(response)
     for a in angles[1:]:
         r = line_response(gray, float(a), options)
-        better = np.abs(r) > np.abs(response)
-        response[better] = r[better]
+        r_mag = np.abs(r)
+        better = r_mag > magnitude
+        np.copyto(response, r, where=better)
+        np.copyto(magnitude, r_mag, where=better)
     if options.polarity is Polarity.BRIGHT:
         strength = np.maximum(response, 0)
     elif options.polarity is Polarity.DARK:
         strength = np.maximum(-response, 0)
     else:
-        strength = np.abs(response)
+        strength = magnitude
     win = options.contrast_window_px
-    local = cv2.blur(np.abs(response), (win, win), borderType=cv2.BORDER_REFLECT)
-    candidate = (strength > options.threshold_k * local) & (strength > options.min_response)
+    local = cv2.blur(magnitude, (win, win), borderType=cv2.BORDER_REFLECT)
+    local *= options.threshold_k
+    np.maximum(local, options.min_response, out=local)
+    candidate = strength > local
     # The −1 taps make a wire respond with the opposite sign beside it: drop those side
     # lobes (a stronger response of the other sign one tap away across the wire).
     # Judged on a slightly smoothed response, so that a wire straddling two pixels (whose
     # lobes are as strong as its centre pixels) still has a stronger centre.
     smooth = cv2.GaussianBlur(response, (0, 0), 0.7)
+    smooth_mag = np.abs(smooth)
+    smooth_pos = smooth > 0
     a = np.deg2rad(direction_deg)
     sx0, sy0 = -options.side_offset_px * np.sin(a), options.side_offset_px * np.cos(a)
     for sx, sy in ((sx0, sy0), (-sx0, -sy0)):
@@ -158,18 +167,13 @@ def detect_wires(
         nb = cv2.warpAffine(
             smooth, shift, (w, h), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE
         )
-        candidate &= ~((np.abs(nb) > np.abs(smooth)) & (np.sign(nb) != np.sign(smooth)))
+        candidate &= ~((np.abs(nb) > smooth_mag) & ((nb > 0) != smooth_pos))
     # 4-connected components, kept when long enough along the wire direction.
     n, labels, stats, _ = cv2.connectedComponentsWithStats(candidate.astype(np.uint8), None, 4)
-    d = np.array([np.cos(np.deg2rad(direction_deg)), np.sin(np.deg2rad(direction_deg))])
-    ys, xs = np.nonzero(labels)
-    lab = labels[ys, xs]
-    along = xs * d[0] + ys * d[1]
-    lo = np.full(n, np.inf)
-    hi = np.full(n, -np.inf)
-    np.minimum.at(lo, lab, along)
-    np.maximum.at(hi, lab, along)
-    long_enough = (hi - lo) >= options.min_length_px(w)
+    # Extent along the wire direction from the bounding box (exact for thin straight lines).
+    d = np.abs([np.cos(np.deg2rad(direction_deg)), np.sin(np.deg2rad(direction_deg))])
+    extent = stats[:, cv2.CC_STAT_WIDTH] * d[0] + stats[:, cv2.CC_STAT_HEIGHT] * d[1]
+    long_enough = extent >= options.min_length_px(w)
     long_enough[0] = False
     mask = long_enough[labels]
     logger.debug(
