@@ -32,7 +32,7 @@ class Polarity(StrEnum):
 class DetectOptions:
     template_length_px: int = 15  # along the wire (paper: 9; 15 measured better on thin wires)
     side_offset_px: int = 1  # distance of the −1 taps from the centre tap (paper: 1)
-    angle_spread_deg: float = 2.0  # also try directions within ± this of the given one
+    angle_spread_deg: float = 0.0  # also try directions within ± this of the given one
     angle_step_deg: float = 2.0
     polarity: Polarity = Polarity.BOTH
     threshold_k: float = 2.0  # wire pixel: |response| > k × local mean |response|

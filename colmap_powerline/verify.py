@@ -256,7 +256,8 @@ def verify_primitives(
     if options.refine and keep.any():
         a_mat, b_vec = normal_eq[keep], rhs[keep]
         # Views constrain only the directions across the wire: damp the step along it.
-        damp = 1e-3 * np.trace(a_mat, axis1=1, axis2=2)[:, None, None] * np.eye(3) + 1e-12
+        trace = np.trace(a_mat, axis1=1, axis2=2)
+        damp = (1e-3 * trace + 1e-9)[:, None, None] * np.eye(3)
         step = np.linalg.solve(a_mat + damp, b_vec[..., None])[..., 0]
         max_step = 5.0 * height / scene.images[0].focal_px  # five pixels at the wires
         refined = np.linalg.norm(step, axis=1) < max_step
