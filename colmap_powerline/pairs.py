@@ -131,18 +131,76 @@ def _line_energy(gray: npt.NDArray[np.float32], angle_deg: float, length_px: int
     return float(np.partition(flat, flat.size - k)[-k:].mean())
 
 
-def _image_direction(gray: npt.NDArray[np.float32], options: PairsOptions) -> tuple[float, float]:
-    """The dominant thin-line direction of an image (degrees, 0 = +x, 90 = down) and its contrast
-    against the median direction."""
+def _image_directions(
+    gray: npt.NDArray[np.float32], options: PairsOptions, num_peaks: int = 3
+) -> list[tuple[float, float]]:
+    """The strongest thin-line directions of an image (degrees, 0 = +x, 90 = down), each with
+    its contrast against the median direction, strongest first."""
     length = max(int(options.template_length_frac * gray.shape[1]), 9)
     angles = np.arange(0.0, 180.0, options.scan_step_deg)
     energy = np.array([_line_energy(gray, a, length) for a in angles])
-    best = angles[int(np.argmax(energy))]
-    fine = best + np.arange(-options.scan_step_deg, options.scan_step_deg + 1e-9, 0.5)
-    fine_energy = np.array([_line_energy(gray, a, length) for a in fine])
-    return float(fine[int(np.argmax(fine_energy))] % 180.0), float(
-        energy.max() / max(float(np.median(energy)), 1e-9)
-    )
+    median = max(float(np.median(energy)), 1e-9)
+    peaks = [
+        k
+        for k in range(len(angles))
+        if energy[k] >= energy[k - 1] and energy[k] >= energy[(k + 1) % len(angles)]
+    ]
+    peaks = sorted(peaks, key=lambda k: -energy[k])[:num_peaks]
+    out = []
+    for k in peaks:
+        fine = angles[k] + np.arange(-options.scan_step_deg, options.scan_step_deg + 1e-9, 0.5)
+        fine_energy = np.array([_line_energy(gray, a, length) for a in fine])
+        out.append((float(fine[int(np.argmax(fine_energy))] % 180.0), float(energy[k] / median)))
+    return out
+
+
+def _line_pixels(
+    view: SceneImage,
+    gray: npt.NDArray[np.float32],
+    factor: int,
+    angle: float,
+    options: PairsOptions,
+) -> F64:
+    """(N, 2) full-resolution pixels of the strongest lines along ``angle`` in an image."""
+    length = max(int(options.template_length_frac * gray.shape[1]), 9)
+    resp, rot = _oriented_response(gray, angle, length)
+    ys, xs = np.nonzero(resp >= np.quantile(resp, 0.998))
+    pts = np.c_[xs, ys, np.ones(len(xs))] @ cv2.invertAffineTransform(rot).T
+    return (pts + 0.5) * factor
+
+
+def _plan_consistency(planes: list[F64], normal: F64) -> float:
+    """How well line positions across the direction agree between images (0..1): histogram
+    intersection of their offsets, averaged over image pairs."""
+    offsets = [p @ normal for p in planes if len(p) > 10]
+    if len(offsets) < 2:
+        return 0.0
+    lo = min(float(np.quantile(o, 0.01)) for o in offsets)
+    hi = max(float(np.quantile(o, 0.99)) for o in offsets)
+    bins = np.arange(lo - 1, hi + 1.5, 0.5)
+    hists = [np.histogram(o, bins)[0] / len(o) for o in offsets]
+    scores = [np.minimum(a, b).sum() for i, a in enumerate(hists) for b in hists[i + 1 :]]
+    return float(np.mean(scores))
+
+
+def _world_azimuth(view: SceneImage, angle: float, height: float) -> float:
+    """Image direction at the image centre → azimuth of a horizontal line at ``height``."""
+    c_px = np.array([view.width / 2, view.height / 2])
+    step = 0.05 * view.width * np.array([np.cos(np.deg2rad(angle)), np.sin(np.deg2rad(angle))])
+    xy = _to_plane(view, np.stack([c_px - step, c_px + step]), height)
+    d = xy[1] - xy[0]
+    return float(np.rad2deg(np.arctan2(d[0], d[1])) % 180.0)
+
+
+def _image_angle(view: SceneImage, azimuth: float, height: float) -> float:
+    """Azimuth of a horizontal line at ``height`` → its image direction near the image centre."""
+    c_px = np.array([[view.width / 2, view.height / 2]])
+    centre = np.r_[_to_plane(view, c_px, height)[0], height]
+    az = np.deg2rad(azimuth)
+    d = np.array([np.sin(az), np.cos(az), 0.0])
+    uv, _, _ = view.project(np.stack([centre - d, centre + d]))
+    du = uv[1] - uv[0]
+    return float(np.rad2deg(np.arctan2(du[1], du[0])) % 180.0)
 
 
 def _to_plane(view: SceneImage, uv: F64, z: float) -> F64:
@@ -165,13 +223,15 @@ def _pick_spread(scene: Scene, n: int) -> list[SceneImage]:
     return [scene.images[k] for k in chosen]
 
 
-def _consensus_azimuth(azimuths: F64, weights: F64, tolerance_deg: float = 5.0) -> float | None:
+def _consensus_azimuth(
+    azimuths: F64, weights: F64, tolerance_deg: float = 5.0, min_share: float = 1 / 3
+) -> float | None:
     """The azimuth (mod 180) most images agree on within a tolerance, weighted; None when no
     direction gathers a third of the weight (images without wires vote at random)."""
     diff = np.abs((azimuths[:, None] - azimuths[None, :] + 90) % 180 - 90)
     support = (diff < tolerance_deg) @ weights
     best = int(np.argmax(support))
-    if support[best] < weights.sum() / 3:
+    if support[best] <= min_share * weights.sum():
         return None
     members = diff[best] < tolerance_deg
     doubled = np.deg2rad(2 * azimuths[members])
@@ -185,8 +245,9 @@ def estimate_corridor(scene: Scene, options: PairsOptions | None = None) -> Wire
     options = options or PairsOptions()
     ground_z = float(np.median(scene.ground_height(scene.centers_in_world[:, :2])))
     height = ground_z + options.wire_height
-    azimuths, weights, samples = [], [], []
     views = _pick_spread(scene, options.num_direction_images)
+    analysed = []  # (view, grey image at analysis scale, downscale factor)
+    azimuths, weights = [], []
     for view in views:
         raw = cv2.imread(str(view.path), cv2.IMREAD_GRAYSCALE)
         if raw is None:
@@ -195,40 +256,59 @@ def estimate_corridor(scene: Scene, options: PairsOptions | None = None) -> Wire
         gray = cv2.resize(
             raw, (raw.shape[1] // factor, raw.shape[0] // factor), interpolation=cv2.INTER_AREA
         ).astype(np.float32)
-        angle, contrast = _image_direction(gray, options)
-        # Turn the image direction at the image centre into a world azimuth.
-        c_px = np.array([view.width / 2, view.height / 2])
-        step = 0.05 * view.width * np.array([np.cos(np.deg2rad(angle)), np.sin(np.deg2rad(angle))])
-        xy = _to_plane(view, np.stack([c_px - step, c_px + step]), height)
-        d = xy[1] - xy[0]
-        azimuths.append(np.rad2deg(np.arctan2(d[0], d[1])) % 180.0)
-        weights.append(contrast)
-        # Strong line pixels at that angle → plan positions of the wires (height approximate).
-        length = max(int(options.template_length_frac * gray.shape[1]), 9)
-        resp, rot = _oriented_response(gray, angle, length)
-        thr = np.quantile(resp, 0.998)
-        ys, xs = np.nonzero(resp >= thr)
-        inv = cv2.invertAffineTransform(rot)
-        pts = np.c_[xs, ys, np.ones(len(xs))] @ inv.T
-        uv = (pts + 0.5) * factor
-        samples.append(_to_plane(view, uv, height))
+        analysed.append((view, gray, factor))
+        for angle, contrast in _image_directions(gray, options):
+            azimuths.append(_world_azimuth(view, angle, height))
+            weights.append(contrast)
+    az_arr, w_arr = np.asarray(azimuths), np.asarray(weights)
+
+    def line_planes(azimuth: float, z: float) -> list[F64]:
+        return [
+            _to_plane(v, _line_pixels(v, g, f, _image_angle(v, azimuth, height), options), z)
+            for v, g, f in analysed
+        ]
+
     if options.wire_azimuth_deg is not None:
         azimuth = float(options.wire_azimuth_deg) % 180.0
     else:
-        azimuth = _consensus_azimuth(np.asarray(azimuths), np.asarray(weights))
-        if azimuth is None:
+        # Candidate directions that several images agree on. Road markings, field rows and
+        # shadows are long lines too, but on the ground: their positions agree between
+        # images when projected to the ground, while wires agree only at wire height.
+        candidates = []
+        remaining = np.ones(len(az_arr), bool)
+        while remaining.any() and len(candidates) < 3:
+            cand = _consensus_azimuth(az_arr[remaining], w_arr[remaining], min_share=0.0)
+            if cand is None:
+                break
+            near = np.abs((az_arr - cand + 90) % 180 - 90) < 5.0
+            candidates.append((cand, float(w_arr[near & remaining].sum())))
+            remaining &= ~near
+        scored = []
+        for cand, weight in candidates:
+            n = np.array([np.cos(np.deg2rad(cand)), -np.sin(np.deg2rad(cand))])
+            at_wires = _plan_consistency(line_planes(cand, height), n)
+            at_ground = _plan_consistency(line_planes(cand, ground_z), n)
+            scored.append((cand, weight, at_wires / max(at_ground, 1e-9)))
+        logger.info(
+            "wire direction candidates (azimuth, weight, elevated/ground agreement): %s",
+            [(round(a, 1), round(w, 1), round(r, 2)) for a, w, r in scored],
+        )
+        elevated = [c for c in scored if c[2] > 1.0]
+        if not scored:
             raise InputError(
-                f"{scene.image_path}: the images do not agree on a wire direction "
-                f"(per-image azimuths {np.round(azimuths, 1).tolist()} deg); "
+                f"{scene.image_path}: no wire direction found in the images; "
                 "give it with --wire_azimuth_deg"
             )
+        if not elevated:
+            logger.warning(
+                "no line direction looks elevated above the ground; using the "
+                "strongest one (give --wire_azimuth_deg if it is not the wires)"
+            )
+        azimuth = max(elevated or scored, key=lambda c: c[1])[0]
+    samples = line_planes(azimuth, height)
     az = np.deg2rad(azimuth)
     direction, normal = np.array([np.sin(az), np.cos(az)]), np.array([np.cos(az), -np.sin(az)])
-    agree = np.abs((np.asarray(azimuths) - azimuth + 90) % 180 - 90) < 5.0
-    # Images whose own dominant direction is not the wires' likely see no wire.
-    xy = np.concatenate(
-        [smp for smp, ok in zip(samples, agree, strict=True) if ok] if agree.any() else samples
-    )
+    xy = np.concatenate(samples)
     c = xy @ normal
     s = xy @ direction
     # The wires are the densest band of line pixels across the line direction.
@@ -264,10 +344,9 @@ def estimate_corridor(scene: Scene, options: PairsOptions | None = None) -> Wire
         decoded=tuple(v.path for v in views),
     )
     logger.info(
-        "wire corridor: azimuth %.1f° (%s; per image %s), %.0f wide, %.0f long",
+        "wire corridor: azimuth %.1f° (%s), %.0f wide, %.0f long",
         azimuth,
         "estimated" if corridor.from_images else "given",
-        np.round(azimuths, 1).tolist(),
         2 * corridor.half_width,
         s_hi - s_lo,
     )
