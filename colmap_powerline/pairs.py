@@ -274,7 +274,7 @@ def estimate_corridor(scene: Scene, options: PairsOptions | None = None) -> Wire
         # Candidate directions that several images agree on. Road markings, field rows and
         # shadows are long lines too, but on the ground: their positions agree between
         # images when projected to the ground, while wires agree only at wire height.
-        candidates = []
+        candidates: list[tuple[float, float]] = []
         remaining = np.ones(len(az_arr), bool)
         while remaining.any() and len(candidates) < 3:
             cand = _consensus_azimuth(az_arr[remaining], w_arr[remaining], min_share=0.0)
