@@ -21,3 +21,12 @@ def small_span(tmp_path_factory):
 def small_scene(small_span):
     """The true model of the small span."""
     return load_scene(small_span.sparse_gt, small_span.images)
+
+
+@pytest.fixture(scope="session")
+def medium_span(tmp_path_factory):
+    """2000x1500 px (wire GSD 4.4 cm), vegetation, across flight: the end-to-end check."""
+    return generate_span(
+        tmp_path_factory.mktemp("span_medium") / "span",
+        SyntheticSpanOptions(scale=0.5, show_progress=False),
+    )

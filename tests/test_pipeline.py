@@ -1,4 +1,4 @@
-"""End to end on the small span, through the library and through the CLI."""
+"""End to end on a half-scale span, and the CLI on the small one."""
 
 from __future__ import annotations
 
@@ -15,28 +15,30 @@ from colmap_powerline.synthetic import load_true_wires
 
 
 @pytest.fixture(scope="module")
-def run(small_span, tmp_path_factory):
+def run(medium_span, tmp_path_factory):
     out = tmp_path_factory.mktemp("out")
     options = ReconstructionOptions(show_progress=False, debug=True)
-    return reconstruct(small_span.images, small_span.sparse, out, options), out
+    return reconstruct(medium_span.images, medium_span.sparse, out, options), out
 
 
-def test_end_to_end_accuracy_and_completeness(run, small_span):
+def test_end_to_end_accuracy_and_completeness(run, medium_span):
     result, _ = run
     ev = evaluate(
-        result.verified.pts_in_world, result.wires, load_true_wires(small_span.truth_wires)
+        result.verified.pts_in_world, result.wires, load_true_wires(medium_span.truth_wires)
     )
     print(ev.summary_table())
     conductors = [w for w in ev.wires if w.kind == "conductor"]
-    # At this test scale (1000x750 px, 9 cm GSD, conductors 0.35 px wide) measured:
-    # completeness 76-85 %, median 4-5 cm, catenary 1.5-3.6 cm. The full targets are
-    # checked at 12 MP by scripts/benchmark.py.
+    # Half scale (wire GSD 4.4 cm, conductors 0.7 px wide), measured by the benchmark:
+    # completeness 88-97 %, median 1.8-2.5 cm, catenary 0.4-1.9 cm, sag error < 2 cm,
+    # 1.7 % outliers, no ghost. Shield wires (0.5 px) are not found at this scale. The
+    # 12 MP targets are checked by scripts/benchmark.py.
     assert all(w.found for w in conductors)
-    assert min(w.completeness for w in conductors) > 0.6
-    assert max(w.median_error_m for w in conductors) < 0.08
-    assert max(w.catenary_rms_m for w in conductors) < 0.06
+    assert min(w.completeness for w in conductors) > 0.8
+    assert max(w.median_error_m for w in conductors) < 0.035
+    assert max(w.catenary_rms_m for w in conductors) < 0.03
+    assert max(abs(w.sag_error_m) for w in conductors) < 0.05
     assert ev.ghost_wires == 0
-    assert ev.outlier_share < 0.06
+    assert ev.outlier_share < 0.04
     assert len(result.pairs) >= 2
     assert len(result.decoded) <= 3 * len(result.scene)
 
@@ -48,7 +50,9 @@ def test_outputs_follow_the_contract(run):
     assert {"timings_s", "options", "images_decoded"} <= set(doc)
     assert len(doc["wires"]) == len(result.wires)
     for w in doc["wires"]:
-        assert w["sag_m"] > 0.3 and w["clearance_m"] > 10 and w["num_points"] > 0
+        assert w["sag_m"] >= 0 and w["clearance_m"] > 10 and w["num_points"] > 0
+        if w["s_range"][1] - w["s_range"][0] > 80:  # a whole span sags visibly
+            assert w["sag_m"] > 0.5
         poly = np.array(w["polyline"])
         steps = np.linalg.norm(np.diff(poly[:, :2], axis=0), axis=1)
         assert np.allclose(steps, 0.1, atol=0.01)
