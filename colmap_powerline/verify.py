@@ -20,6 +20,7 @@ import numpy.typing as npt
 from tqdm import tqdm
 
 from .detect import WireMask
+from .errors import InputError
 from .scene import Scene, SceneImage
 from .triangulate import Primitives
 
@@ -154,8 +155,6 @@ def _projection_jacobian(view: SceneImage, pts: F64) -> F64:
 
 def read_image(path: str) -> np.ndarray:
     """Decode an image as RGB uint8, or raise a one-line error naming the file."""
-    from .errors import InputError
-
     img = cv2.imread(path, cv2.IMREAD_COLOR)
     if img is None:
         raise InputError(f"{path}: cannot decode the image")

@@ -21,6 +21,7 @@ import numpy.typing as npt
 from scipy.optimize import least_squares
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
+from scipy.spatial import cKDTree
 
 logger = logging.getLogger(__name__)
 
@@ -274,8 +275,6 @@ def split_wires(
     cells -= cells.min(axis=0)
     vox, inverse, counts = np.unique(cells, axis=0, return_inverse=True, return_counts=True)
     inverse = inverse.ravel()
-    from scipy.spatial import cKDTree
-
     scaled = vox / np.array([options.link_along_cells, options.link_cells, options.link_cells])
     pairs = cKDTree(scaled).query_pairs(1.0 + 1e-9, p=np.inf, output_type="ndarray")
     graph = coo_matrix(
