@@ -85,7 +85,7 @@ def _cmd_demo(args: argparse.Namespace) -> int:
         f"{sum(len(p) for p in result.primitives)} primitives, {len(result.verified)} verified "
         f"points, {len(result.wires)} wires"
     )
-    print("\naccuracy against the true wires (distances in metres):")
+    print("\naccuracy against the true wires:")
     print(ev.summary_table())
     targets = ev.meets_targets()
     print("\ntargets: " + ", ".join(f"{k} {'ok' if v else 'MISSED'}" for k, v in targets.items()))
