@@ -59,7 +59,7 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     from .synthetic import generate_span, load_true_wires
 
     out = Path(args.output_path)
-    span_dir = out / "span"
+    span_dir = out / f"span_{args.background}_{args.flight}_s{args.scale:g}_seed{args.seed}"
     t0 = time.perf_counter()
     if (span_dir / "truth" / "wires.json").exists():
         logger.info("reusing the synthetic span in %s", span_dir)
