@@ -10,7 +10,9 @@ from __future__ import annotations
 
 import logging
 import time
+from collections import deque
 from collections.abc import Callable, Sequence
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -37,6 +39,7 @@ class VerifyOptions:
     min_crossing_hits: int = 1  # hits needed from views offset across the wires from the pair
     crossing_offset: float = 0.15  # such a view is offset across the wires by ≥ this × its height
     refine: bool = True  # move each kept point onto the wire centres of the redundant views
+    num_threads: int = 2  # views processed at once (peak memory grows with it)
     margin_px: int = 24  # wire search region: bounding box of the projections plus this margin
 
 
@@ -58,6 +61,17 @@ class VerifiedPoints:
 # A wire detector for one image: (view, image, direction_deg, crop (x0, y0, x1, y1)) → the
 # WireMask of the crop.
 WireMaskFn = Callable[[SceneImage, np.ndarray, float, tuple[int, int, int, int]], WireMask]
+
+
+@dataclass(frozen=True, eq=False)
+class _ViewResult:
+    idx: npt.NDArray[np.int64]  # primitives this view sees
+    hit: npt.NDArray[np.bool_]  # which of them land on a wire
+    refine_idx: npt.NDArray[np.int64]  # primitives with a wire-centre observation here
+    rows: F64  # (n, 3) their observation rows (d offset / d point)
+    offsets: F64  # (n,) their across-wire offsets to the wire centre (px)
+    t_read: float
+    t_detect: float
 
 
 def crossing_views(
@@ -196,22 +210,20 @@ def verify_primitives(
     crossing = crossing_views(
         scene.centers_in_world, pair_centres, azimuth_deg, height, options.crossing_offset
     )  # (P, V)
-    t_detect = t_read = 0.0
-    decoded: list[Path] = []
     normal_eq = np.zeros((len(pts) if options.refine else 0, 3, 3))
     rhs = np.zeros((len(pts) if options.refine else 0, 3))
-    for v, view in enumerate(
-        tqdm(scene.images, desc="verify", unit="img", disable=not show_progress)
-    ):
+
+    def check(view: SceneImage) -> _ViewResult | None:
+        """Project, decode, detect and compare for one view (runs in a worker thread)."""
         own = np.array([view.name in names for names in pair_images])
         # Cheap pinhole pre-cull with a wide margin, then the exact lens model.
         cand = np.flatnonzero(~own[pair_of] & _roughly_in_view(view, pts))
         if len(cand) == 0:
-            continue
+            return None
         uv_c, _, inside_c = view.project(pts[cand])
         idx = cand[inside_c]
         if len(idx) == 0:
-            continue
+            return None
         uv = uv_c[inside_c]  # (len(idx), 2)
         px = np.floor(uv).astype(np.int64)  # pixel containing the projection
         x0 = max(int(px[:, 0].min()) - options.margin_px, 0)
@@ -220,22 +232,18 @@ def verify_primitives(
         y1 = min(int(px[:, 1].max()) + options.margin_px + 1, view.height)
         t0 = time.perf_counter()
         image = read_image(str(view.path))
-        decoded.append(view.path)
-        t_read += time.perf_counter() - t0
+        t_read = time.perf_counter() - t0
         # The wires' direction here, at a primitive this image sees.
         direction = image_wire_direction_deg(view, pts[idx[len(idx) // 2]], azimuth_deg)
         t0 = time.perf_counter()
         wires = wire_mask(view, image, direction, (x0, y0, x1, y1))
         del image
-        mask = wires.dilated(options.tolerance_px)
-        t_detect += time.perf_counter() - t0
-        hit = mask[px[:, 1] - y0, px[:, 0] - x0]
-        views[idx] += 1
-        hits[idx] += hit
-        crossing_hits[idx] += hit & crossing[pair_of[idx], v]
+        hit = wires.dilated(options.tolerance_px)[px[:, 1] - y0, px[:, 0] - x0]
+        t_detect = time.perf_counter() - t0
+        hid = idx[hit] if options.refine else np.zeros(0, np.int64)
+        rows = offset = np.zeros(0)
         if options.refine and hit.any():
             # One Gauss-Newton observation per hit: the across-wire offset to the centre.
-            hid = idx[hit]
             a = np.deg2rad(direction)
             normal = np.array([-np.sin(a), np.cos(a)])
             offset = _wire_offsets(
@@ -243,10 +251,39 @@ def verify_primitives(
             )
             ok = np.isfinite(offset)
             hid, offset = hid[ok], offset[ok]
-            row = np.einsum("j,njk->nk", normal, _projection_jacobian(view, pts[hid]))  # (n, 3)
-            # hid is unique within one view: plain fancy-index accumulation is exact.
-            normal_eq[hid] += row[:, :, None] * row[:, None, :]
-            rhs[hid] += row * offset[:, None]
+            rows = np.einsum("j,njk->nk", normal, _projection_jacobian(view, pts[hid]))
+        return _ViewResult(idx, hit, hid, rows, offset, t_read, t_detect)
+
+    t_detect = t_read = 0.0
+    decoded: list[Path] = []
+    # Two views at a time: decoding, filtering and projecting release the GIL.
+    with ThreadPoolExecutor(max_workers=max(1, options.num_threads)) as pool:
+        # A short queue of views in flight keeps memory to a few views' results.
+        pending: deque = deque()
+        images = iter(scene.images)
+        for _ in range(options.num_threads + 1):
+            view0 = next(images, None)
+            if view0 is not None:
+                pending.append(pool.submit(check, view0))
+        for v, view in enumerate(
+            tqdm(scene.images, desc="verify", unit="img", disable=not show_progress)
+        ):
+            res = pending.popleft().result()
+            nxt = next(images, None)
+            if nxt is not None:
+                pending.append(pool.submit(check, nxt))
+            if res is None:
+                continue
+            decoded.append(view.path)
+            t_read += res.t_read
+            t_detect += res.t_detect
+            views[res.idx] += 1
+            hits[res.idx] += res.hit
+            crossing_hits[res.idx] += res.hit & crossing[pair_of[res.idx], v]
+            if len(res.refine_idx):
+                # refine_idx is unique within one view: fancy-index accumulation is exact.
+                normal_eq[res.refine_idx] += res.rows[:, :, None] * res.rows[:, None, :]
+                rhs[res.refine_idx] += res.rows * res.offsets[:, None]
     need = np.maximum(np.ceil(options.min_hit_ratio * views - 1e-9), 1).astype(np.int32)
     keep = (views >= options.min_views) & (hits >= need)
     keep &= crossing_hits >= options.min_crossing_hits
@@ -264,7 +301,7 @@ def verify_primitives(
         kept_pts[refined] += step[refined]
     logger.info(
         "verify: %d of %d primitives kept (%.1f %%), median %d redundant views; "
-        "decode %.1f s, wire masks %.1f s",
+        "decode %.1f s, wire masks %.1f s (summed over threads)",
         keep.sum(),
         len(pts),
         100 * keep.mean() if len(pts) else 0.0,
