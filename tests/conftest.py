@@ -1,4 +1,4 @@
-"""One small synthetic span shared by the whole suite (rendered once per session, ~10 s)."""
+"""Synthetic spans shared by the whole suite, rendered once per session."""
 
 from __future__ import annotations
 
@@ -10,7 +10,11 @@ from colmap_powerline.synthetic import SyntheticSpanOptions, generate_span
 
 @pytest.fixture(scope="session")
 def small_span(tmp_path_factory):
-    """1000x750 px, vegetation, four strips across the line (32 images)."""
+    """The default span at scale 0.25 (~10 s on 2 cores).
+
+    1000 x 750 px OPENCV camera, vegetation background and the default flight: four strips
+    across the line, 32 images, with images/, sparse_gt/, sparse/0/ and truth/.
+    """
     return generate_span(
         tmp_path_factory.mktemp("span") / "span",
         SyntheticSpanOptions(scale=0.25, show_progress=False),
@@ -19,7 +23,7 @@ def small_span(tmp_path_factory):
 
 @pytest.fixture(scope="session")
 def small_scene(small_span):
-    """The true model of the small span."""
+    """The true model of the small span, loaded with its images."""
     return load_scene(small_span.sparse_gt, small_span.images)
 
 
