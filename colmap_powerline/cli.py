@@ -14,6 +14,8 @@ from pathlib import Path
 from typing import Any
 
 from .errors import InputError
+from .georef import GeoreferenceOptions
+from .sfm import SfmOptions
 from .synthetic import Background, FlightPattern, SyntheticSpanOptions
 
 logger = logging.getLogger("colmap_powerline")
@@ -110,6 +112,8 @@ def _add_option_flags(p: argparse.ArgumentParser, options_cls: type) -> None:
         hints = typing.get_type_hints(stage_cls)
         default_obj = stage_cls()  # type: ignore[operator]
         for f in dataclasses.fields(stage_cls):
+            if f.name == "show_progress":  # set by --quiet
+                continue
             hint = hints[f.name]
             optional = isinstance(hint, types.UnionType) and type(None) in typing.get_args(hint)
             base = (
@@ -138,24 +142,95 @@ def _add_option_flags(p: argparse.ArgumentParser, options_cls: type) -> None:
 def _reconstruction_options(args: argparse.Namespace) -> Any:
     from .pipeline import ReconstructionOptions
 
-    options = ReconstructionOptions(show_progress=not args.quiet, debug=args.debug)
+    options = ReconstructionOptions(
+        show_progress=not args.quiet,
+        debug=getattr(args, "debug", False),
+        skip_bad_images=args.skip_bad_images,
+        output_crs=getattr(args, "output_crs", None),
+    )
+    options.sfm.georeference = _georef_options(args)
     for key, value in vars(args).items():
         if "." in key:
             stage, name = key.split(".", 1)
             setattr(getattr(options, stage), name, value)
-    if args.wire_azimuth_deg is not None:
+    if getattr(args, "wire_azimuth_deg", None) is not None:
         options.pairs.wire_azimuth_deg = args.wire_azimuth_deg
     return options
+
+
+def _add_georef_flags(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("georeferencing (SfM models; default: EXIF GPS when present)")
+    g.add_argument(
+        "--origin_wgs84",
+        type=_lat_lon_alt,
+        default=None,
+        metavar="LAT,LON,ALT",
+        help="origin of the local east-north-up frame (default: the cameras' mean "
+        "latitude/longitude at altitude 0)",
+    )
+    g.add_argument(
+        "--ref_images_path",
+        type=Path,
+        default=None,
+        help="known camera positions, one 'image_name X Y Z' per line (like COLMAP's "
+        "model_aligner); they win over EXIF GPS",
+    )
+    g.add_argument(
+        "--ref_is_gps", type=_parse_bool, default=False, help="the file holds 'name lat lon alt'"
+    )
+    g.add_argument(
+        "--scale_m_per_unit",
+        type=float,
+        default=None,
+        help="known scale for images without GPS (metres per model unit)",
+    )
+    g.add_argument(
+        "--alignment_max_error",
+        type=float,
+        default=GeoreferenceOptions().max_error_m,
+        help="metres: cameras farther than this from their position are outliers",
+    )
+    g.add_argument("--use_gps", type=_parse_bool, default=True, help="align to EXIF GPS")
+
+
+def _lat_lon_alt(text: str) -> tuple[float, float, float]:
+    try:
+        lat, lon, alt = (float(v) for v in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected LAT,LON,ALT") from None
+    return lat, lon, alt
+
+
+def _georef_options(args: argparse.Namespace) -> GeoreferenceOptions:
+    return GeoreferenceOptions(
+        use_gps=args.use_gps,
+        origin_wgs84=args.origin_wgs84,
+        max_error_m=args.alignment_max_error,
+        ref_images_path=args.ref_images_path,
+        ref_is_gps=args.ref_is_gps,
+        scale_m_per_unit=args.scale_m_per_unit,
+    )
+
+
+def _cmd_sfm(args: argparse.Namespace) -> int:
+    from .sfm import run_sfm
+
+    options = _reconstruction_options(args).sfm
+    options.show_progress = not args.quiet
+    result = run_sfm(args.image_path, args.output_path, options, args.skip_bad_images)
+    print(f"wrote {result.model_path}\n{result.summary()}")
+    return 0
 
 
 def _cmd_reconstruct(args: argparse.Namespace) -> int:
     from .pipeline import reconstruct
 
-    if args.input_path is None:
-        raise InputError("--input_path is required (running SfM first is not available yet)")
+    if args.image_path is None and args.input_path is None:
+        raise InputError("give --image_path (and --input_path, or SfM runs first)")
     result = reconstruct(
         args.image_path, args.input_path, args.output_path, _reconstruction_options(args)
     )
+    units = "m" if "sfm_mapping" in result.timings_s or _is_metric(result) else " units"
     print(
         f"{len(result.wires)} wires from {len(result.verified)} verified points "
         f"({len(result.pairs)} pairs) → {args.output_path}"
@@ -163,10 +238,32 @@ def _cmd_reconstruct(args: argparse.Namespace) -> int:
     for w in result.wires:
         lo = w.lowest_point()
         print(
-            f"  wire {w.wire_id}: {w.s_range[1] - w.s_range[0]:.1f} long, sag {w.sag():.2f}, "
-            f"lowest z {lo[2]:.2f}, {len(w.point_indices)} points, rms {w.rms_residual:.3f}"
+            f"  wire {w.wire_id}: {w.s_range[1] - w.s_range[0]:.1f}{units} long, "
+            f"sag {w.sag():.2f}{units}, lowest z {lo[2]:.2f}{units}, "
+            f"{len(w.point_indices)} points, rms {w.rms_residual:.3f}{units}"
         )
     return 0
+
+
+def _is_metric(result: Any) -> bool:
+    from .georef import read_georeference
+
+    return read_georeference(result.scene.model_path) is not None
+
+
+@dataclasses.dataclass(kw_only=True)
+class _SfmOnly:
+    """The option sections the ``sfm`` command takes."""
+
+    sfm: SfmOptions = dataclasses.field(default_factory=SfmOptions)
+
+
+def _add_common_input_flags(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--skip_bad_images",
+        action="store_true",
+        help="skip missing or undecodable images with a warning instead of stopping",
+    )
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -182,10 +279,37 @@ def build_parser() -> argparse.ArgumentParser:
     _add_synthetic_flags(demo, default_scale=0.5)
     demo.set_defaults(func=_cmd_demo)
 
+    from .pipeline import ReconstructionOptions
+
+    sfm = sub.add_parser("sfm", help="orient the images with pycolmap SfM (+ georeferencing)")
+    sfm.add_argument("--image_path", type=Path, required=True)
+    sfm.add_argument("--output_path", type=Path, required=True, help="model folder to write")
+    _add_common_input_flags(sfm)
+    _add_georef_flags(sfm)
+    _add_option_flags(sfm, _SfmOnly)
+    sfm.set_defaults(func=_cmd_sfm)
+
     rec = sub.add_parser("reconstruct", help="reconstruct the wires from a COLMAP model + images")
-    rec.add_argument("--image_path", type=Path, required=True)
-    rec.add_argument("--input_path", type=Path, help="COLMAP sparse model (binary or text)")
+    rec.add_argument(
+        "--image_path",
+        type=Path,
+        help="the images (default: images/ of an undistorted workspace given as --input_path)",
+    )
+    rec.add_argument(
+        "--input_path",
+        type=Path,
+        help="COLMAP sparse model (binary or text) or undistorted workspace (dense/); "
+        "without it SfM runs first and writes OUTPUT/sparse",
+    )
     rec.add_argument("--output_path", type=Path, required=True)
+    rec.add_argument(
+        "--output_crs",
+        default=None,
+        help="write coordinates in a projected CRS: 'utm' (the zone of the site) or "
+        "'EPSG:…'; needs a model georeferenced from GPS",
+    )
+    _add_common_input_flags(rec)
+    _add_georef_flags(rec)
     rec.add_argument(
         "--wire_azimuth_deg",
         type=float,
@@ -194,8 +318,6 @@ def build_parser() -> argparse.ArgumentParser:
         "default: estimated from the images",
     )
     rec.add_argument("--debug", action="store_true", help="also write primitives.ply")
-    from .pipeline import ReconstructionOptions
-
     _add_option_flags(rec, ReconstructionOptions)
     rec.set_defaults(func=_cmd_reconstruct)
 
@@ -214,6 +336,10 @@ def main(argv: list[str] | None = None) -> int:
         format="%(asctime)s %(levelname)s %(name)s: %(message)s",
         datefmt="%H:%M:%S",
     )
+    import pycolmap
+
+    # COLMAP's own log (glog) is thousands of lines per run; keep its warnings only.
+    pycolmap.logging.minloglevel = 1 if not args.quiet else 2
     try:
         return int(args.func(args))
     except (InputError, FileExistsError, ValueError) as exc:

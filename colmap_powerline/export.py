@@ -137,12 +137,30 @@ def export_results(
     metadata: dict[str, Any],
     ground_height: Callable[[F64], F64] | None = None,
     sample_step: float = 0.1,
+    to_crs: tuple[Callable[[F64], F64], str] | None = None,
 ) -> dict[str, Path]:
-    """Write the output contract of DESIGN.md into ``output_path``; returns the files."""
+    """Write the output contract of DESIGN.md into ``output_path``; returns the files.
+
+    ``to_crs`` = (function, name) writes every coordinate (points, polylines, ends, lowest
+    points) in that CRS instead of the model frame; the catenary parameters and the wire's
+    vertical plane stay in the model frame, where the catenary is a catenary.
+    """
     output_path = Path(output_path)
     output_path.mkdir(parents=True, exist_ok=True)
     out: dict[str, Path] = {}
-    doc = {**metadata, "wires": [w.to_json(ground_height, sample_step) for w in wires]}
+    convert: Callable[[F64], F64] = (lambda xyz: xyz) if to_crs is None else to_crs[0]
+    wire_docs = [w.to_json(ground_height, sample_step) for w in wires]
+    if to_crs is not None:
+        for d in wire_docs:
+            for key in ("ends", "polyline"):
+                d[key] = np.round(convert(np.array(d[key])), 4).tolist()
+            d["lowest_point"] = convert(np.array([d["lowest_point"]]))[0].tolist()
+    doc = {
+        **metadata,
+        "crs": to_crs[1] if to_crs is not None else "model frame",
+        "catenary_frame": "model frame",
+        "wires": wire_docs,
+    }
     text = json.dumps(_finite(doc), allow_nan=False)
     out["wires.json"] = write_atomic(output_path / "wires.json", lambda p: p.write_text(text))
     dense = [w.polyline(sample_step) for w in wires]
@@ -151,7 +169,8 @@ def export_results(
         if wires
         else np.zeros(0, np.int64)
     )
-    dense_pts = np.concatenate(dense) if dense else np.zeros((0, 3))
+    dense_pts = convert(np.concatenate(dense)) if dense else np.zeros((0, 3))
+    points = convert(points) if len(points) else points
     out["wires.ply"] = write_point_cloud(
         output_path / "wires.ply", dense_pts, wire_colors(ids), ids
     )
@@ -159,6 +178,8 @@ def export_results(
         output_path / "wire_points.ply", points, wire_colors(labels), labels
     )
     if primitives is not None:
-        out["primitives.ply"] = write_point_cloud(output_path / "primitives.ply", primitives)
+        out["primitives.ply"] = write_point_cloud(
+            output_path / "primitives.ply", convert(primitives) if len(primitives) else primitives
+        )
     logger.info("export: %s", ", ".join(str(p) for p in out.values()))
     return out

@@ -19,7 +19,7 @@ import numpy as np
 import numpy.typing as npt
 
 from .errors import InputError
-from .scene import Scene, SceneImage
+from .scene import Scene, SceneImage, read_image
 from .verify import crossing_views
 
 logger = logging.getLogger(__name__)
@@ -249,9 +249,7 @@ def estimate_corridor(scene: Scene, options: PairsOptions | None = None) -> Wire
     analysed = []  # (view, grey image at analysis scale, downscale factor)
     azimuths, weights = [], []
     for view in views:
-        raw = cv2.imread(str(view.path), cv2.IMREAD_GRAYSCALE)
-        if raw is None:
-            raise InputError(f"{view.path}: cannot decode the image")
+        raw = read_image(view.path, cv2.IMREAD_GRAYSCALE)
         factor = max(1, int(round(raw.shape[1] / options.analysis_width_px)))
         gray = cv2.resize(
             raw, (raw.shape[1] // factor, raw.shape[0] // factor), interpolation=cv2.INTER_AREA

@@ -9,6 +9,7 @@ import dataclasses
 import json
 import logging
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -21,11 +22,13 @@ from tqdm import tqdm
 from .detect import DetectOptions, WireMask, detect_wires
 from .errors import InputError
 from .export import export_results
+from .georef import Georeference, enu_to_crs, read_georeference
 from .pairs import ImagePair, PairsOptions, WireCorridor, estimate_corridor, select_pairs
 from .rectify import RectifiedPair, RectifyOptions, rectify_pair
-from .scene import Scene, SceneImage, load_scene
+from .scene import Scene, SceneImage, load_scene, read_image, resolve_inputs
+from .sfm import SfmOptions, run_sfm
 from .triangulate import Primitives, TriangulateOptions, triangulate_pair, wire_centres
-from .verify import VerifiedPoints, VerifyOptions, read_image, verify_primitives
+from .verify import VerifiedPoints, VerifyOptions, verify_primitives
 from .wires import FittedWire, WiresOptions, split_wires
 
 logger = logging.getLogger(__name__)
@@ -39,6 +42,10 @@ class ReconstructionOptions:
     triangulate: TriangulateOptions = field(default_factory=TriangulateOptions)
     verify: VerifyOptions = field(default_factory=VerifyOptions)
     wires: WiresOptions = field(default_factory=WiresOptions)
+    sfm: SfmOptions = field(default_factory=SfmOptions)  # used when no model is given
+    skip_bad_images: bool = False  # drop missing/undecodable images with a warning
+    output_crs: str | None = None  # write coordinates in this projected CRS ("utm" or
+    # "EPSG:…"); needs a model georeferenced from GPS
     show_progress: bool = True  # progress bars on the loops over pairs and images
     debug: bool = False  # also write primitives.ply (every candidate before verification)
 
@@ -95,7 +102,7 @@ def primitives_for_pairs(
         )
         centres = []
         for side, view in enumerate(geom.sides):
-            image = read_image(str(view.path))
+            image = read_image(view.path)
             decoded.append(view.path)
             c, n_px = _detect_rectified(geom, side, image, corridor, options.detect)
             centres.append(c)
@@ -116,23 +123,40 @@ def primitives_for_pairs(
 
 
 def reconstruct(
-    image_path: Path | str,
-    input_path: Path | str,
+    image_path: Path | str | None,
+    input_path: Path | str | None,
     output_path: Path | str | None = None,
     options: ReconstructionOptions | None = None,
 ) -> ReconstructionResult:
     """Reconstruct every wire of the span seen by a COLMAP model's images.
 
     Args:
-        image_path: the image folder the model's image names are relative to.
-        input_path: the COLMAP sparse model (binary or text).
+        image_path: the image folder the model's image names are relative to (None: the
+            ``images/`` of an undistorted workspace given as ``input_path``).
+        input_path: the COLMAP sparse model (binary or text), or an undistorted COLMAP
+            workspace; None runs SfM first and writes its model to ``output_path/sparse``.
         output_path: where to write wires.json, wires.ply, wire_points.ply (None: nothing).
         options: the options of every stage.
     """
     options = options or ReconstructionOptions()
     timings: dict[str, float] = {}
+    if input_path is None:
+        if output_path is None or image_path is None:
+            raise InputError("running SfM needs an image folder and an output folder")
+        options.sfm.show_progress = options.show_progress
+        sfm = run_sfm(
+            image_path, Path(output_path) / "sparse", options.sfm, options.skip_bad_images
+        )
+        timings.update({f"sfm_{k}": v for k, v in sfm.timings_s.items()})
+        input_path = sfm.model_path
+    input_path, image_path = resolve_inputs(image_path, input_path)
+    georef = read_georeference(input_path)
+    if options.output_crs and (georef is None or georef.origin_wgs84 is None):
+        raise InputError(
+            f"{input_path}: --output_crs needs a model georeferenced from GPS (georef.json)"
+        )
     t0 = time.perf_counter()
-    scene = load_scene(input_path, image_path)
+    scene = load_scene(input_path, image_path, skip_bad_images=options.skip_bad_images)
     timings["scene"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
@@ -199,11 +223,23 @@ def reconstruct(
             primitives=np.concatenate([p.pts_in_world for p in primitives])
             if options.debug
             else None,
-            metadata=_metadata(result, image_path, input_path, options),
+            metadata=_metadata(result, image_path, input_path, options, georef),
             ground_height=scene.ground_height,
+            to_crs=_crs_function(georef, options.output_crs),
         )
         timings["export"] = time.perf_counter() - t0
     return result
+
+
+def _crs_function(
+    georef: Georeference | None, crs: str | None
+) -> tuple[Callable[[npt.NDArray[np.float64]], npt.NDArray[np.float64]], str] | None:
+    """(model frame → ``crs`` function, CRS name), or None to keep the model frame."""
+    if not crs or georef is None or georef.origin_wgs84 is None:
+        return None
+    origin = georef.origin_wgs84
+    name = enu_to_crs(np.zeros((1, 3)), origin, crs)[1]  # fails early on an unknown CRS
+    return (lambda xyz: enu_to_crs(xyz, origin, crs)[0]), name
 
 
 def _metadata(
@@ -211,6 +247,7 @@ def _metadata(
     image_path: Path | str,
     input_path: Path | str,
     options: ReconstructionOptions,
+    georef: Georeference | None,
 ) -> dict[str, Any]:
     def plain(obj: Any) -> Any:
         return json.loads(json.dumps(dataclasses.asdict(obj), default=str))
@@ -218,7 +255,8 @@ def _metadata(
     return {
         "input_model": str(input_path),
         "image_path": str(image_path),
-        "units": "model units (metres when the model is georeferenced)",
+        "units": "metres" if georef is not None else "model units (not georeferenced)",
+        "georeference": georef.to_json() if georef is not None else None,
         "wire_azimuth_deg": result.corridor.azimuth_deg,
         "pairs": [
             {

@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
 
+import cv2
 import numpy as np
 import numpy.typing as npt
 import pycolmap
@@ -287,13 +288,64 @@ def _model_format(path: Path) -> str | None:
     return None
 
 
-def load_scene(model_path: Path | str, image_path: Path | str, check_images: bool = True) -> Scene:
+def read_image(path: Path | str, flags: int = cv2.IMREAD_COLOR) -> np.ndarray:
+    """Decode an image (RGB uint8, or grey with ``cv2.IMREAD_GRAYSCALE``), or raise one line."""
+    img = cv2.imread(str(path), flags)
+    if img is None:
+        raise InputError(f"{path}: cannot decode the image (missing, empty or not an image)")
+    return cv2.cvtColor(img, cv2.COLOR_BGR2RGB) if img.ndim == 3 else img
+
+
+def resolve_inputs(image_path: Path | str | None, input_path: Path | str) -> tuple[Path, Path]:
+    """(model folder, image folder), accepting an undistorted COLMAP workspace as input.
+
+    ``input_path`` may be a sparse model, or a workspace written by COLMAP's
+    ``image_undistorter`` (``dense/`` with ``images/`` and ``sparse/``); the workspace's own
+    ``images/`` is used unless ``image_path`` is given.
+    """
+    input_path = Path(input_path)
+    if _model_format(input_path) is None and _model_format(input_path / "sparse") is not None:
+        if image_path is None:
+            image_path = input_path / "images"
+        input_path = input_path / "sparse"
+    if image_path is None:
+        raise InputError(f"{input_path}: --image_path is needed (not an undistorted workspace)")
+    return input_path, Path(image_path)
+
+
+def _image_problem(path: Path, width: int, height: int) -> str | None:
+    """Why an image named by the model cannot be used, or None when it can."""
+    if not path.is_file():
+        return "missing on disk"
+    try:
+        with Image.open(path) as f:
+            size = f.size
+    except Exception as exc:
+        return f"not a readable image ({type(exc).__name__})"
+    if size != (width, height):
+        return (
+            f"{size[0]}x{size[1]} px but its camera is {width}x{height} "
+            "(images from another model, or undistorted ones?)"
+        )
+    return None
+
+
+def load_scene(
+    model_path: Path | str,
+    image_path: Path | str,
+    check_images: bool = True,
+    skip_bad_images: bool = False,
+) -> Scene:
     """Read a COLMAP sparse model (binary or text) and its images into a :class:`Scene`.
 
     Args:
         model_path: folder with ``cameras``, ``images`` and ``points3D`` (.bin or .txt).
-        image_path: folder the model's image names are relative to.
-        check_images: require every registered image to exist on disk.
+        image_path: folder the model's image names are relative to (names may hold
+            sub-folders, as the model writes them).
+        check_images: require every registered image to exist on disk, be readable and
+            have its camera's size.
+        skip_bad_images: drop (with one warning each) the images that fail those checks,
+            instead of stopping.
 
     Raises:
         InputError: with one line naming the path and the problem.
@@ -335,45 +387,32 @@ def load_scene(model_path: Path | str, image_path: Path | str, check_images: boo
                 "cameras file?"
             )
     images: list[SceneImage] = []
-    missing: list[str] = []
     for image_id in rec.reg_image_ids():
         image = rec.image(image_id)
         if not image.has_pose:
             continue
         cam_from_world = image.cam_from_world()
+        camera = rec.camera(image.camera_id)
         path = image_path / image.name
-        if check_images and not path.is_file():
-            missing.append(image.name)
+        problem = _image_problem(path, camera.width, camera.height) if check_images else None
+        if problem is not None:
+            if not skip_bad_images:
+                raise InputError(f"{path}: image named by {model_path} is {problem}")
+            logger.warning("skipping %s: %s", path, problem)
+            continue
         images.append(
             SceneImage(
                 image_id=int(image_id),
                 name=image.name,
                 path=path,
-                camera=rec.camera(image.camera_id),
+                camera=camera,
                 rot_cam_from_world=np.asarray(cam_from_world.rotation.matrix(), dtype=np.float64),
                 t_cam_from_world=np.asarray(cam_from_world.translation, dtype=np.float64),
             )
         )
     if not images:
-        raise InputError(f"{model_path}: the model has no registered images")
-    if missing:
-        more = f" and {len(missing) - 1} more" if len(missing) > 1 else ""
-        raise InputError(
-            f"{image_path / missing[0]}: image named by the model is missing on disk{more}"
-        )
+        raise InputError(f"{model_path}: the model has no registered images (that can be used)")
     images.sort(key=lambda im: im.name)
-    if check_images:  # one header read: does the model describe these files?
-        im0 = images[0]
-        try:
-            with Image.open(im0.path) as f:
-                size = f.size
-        except Exception as exc:
-            raise InputError(f"{im0.path}: cannot read the image ({exc})") from exc
-        if size != (im0.width, im0.height):
-            raise InputError(
-                f"{im0.path}: image is {size[0]}x{size[1]} px but its camera in {model_path} "
-                f"is {im0.width}x{im0.height} (images from another model or undistorted?)"
-            )
 
     pts = list(rec.points3D.values())
     scene = Scene(

@@ -22,8 +22,7 @@ import numpy.typing as npt
 from tqdm import tqdm
 
 from .detect import WireMask
-from .errors import InputError
-from .scene import Scene, SceneImage
+from .scene import Scene, SceneImage, read_image
 from .triangulate import Primitives
 
 logger = logging.getLogger(__name__)
@@ -167,14 +166,6 @@ def _projection_jacobian(view: SceneImage, pts: F64) -> F64:
     return d @ view.rot_cam_from_world
 
 
-def read_image(path: str) -> np.ndarray:
-    """Decode an image as RGB uint8, or raise a one-line error naming the file."""
-    img = cv2.imread(path, cv2.IMREAD_COLOR)
-    if img is None:
-        raise InputError(f"{path}: cannot decode the image")
-    return cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
-
-
 def verify_primitives(
     scene: Scene,
     primitives: Sequence[Primitives],
@@ -231,7 +222,7 @@ def verify_primitives(
         x1 = min(int(px[:, 0].max()) + options.margin_px + 1, view.width)
         y1 = min(int(px[:, 1].max()) + options.margin_px + 1, view.height)
         t0 = time.perf_counter()
-        image = read_image(str(view.path))
+        image = read_image(view.path)
         t_read = time.perf_counter() - t0
         # The wires' direction here, at a primitive this image sees.
         direction = image_wire_direction_deg(view, pts[idx[len(idx) // 2]], azimuth_deg)
