@@ -57,6 +57,8 @@ class SfmOptions:
     max_num_features: int = 8192  # SIFT features per image
     use_gpu: bool = True  # use CUDA when pycolmap was built with it (ignored otherwise)
     num_threads: int = -1  # -1: all cores
+    refine_principal_point: bool = True  # drone lenses sit off-centre: a fixed principal
+    # point shifts every camera by decimetres, alternately on serpentine strips
     random_seed: int = 0  # makes the mapper repeatable
     georeference: GeoreferenceOptions = field(default_factory=GeoreferenceOptions)
     show_progress: bool = True
@@ -236,6 +238,7 @@ def _map(
     mapping.num_threads = opts.num_threads
     mapping.random_seed = opts.random_seed
     mapping.multiple_models = True
+    mapping.ba_refine_principal_point = opts.refine_principal_point
     n_images = 0
     with pycolmap.Database.open(database_path) as db:
         n_images = db.num_images()

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import logging
 import shutil
 
 import cv2
@@ -10,6 +11,7 @@ import pycolmap
 import pytest
 
 from colmap_powerline import InputError, load_scene
+from colmap_powerline.scene import read_image, resolve_inputs
 from colmap_powerline.synthetic import (
     SyntheticSpanOptions,
     Terrain,
@@ -108,7 +110,7 @@ def test_bad_models_give_one_line_errors(small_span, tmp_path):
     images = tmp_path / "images"
     shutil.copytree(small_span.images, images)
     (images / "DJI_0005.JPG").unlink()
-    with pytest.raises(InputError, match="DJI_0005.JPG: image named by the model is missing"):
+    with pytest.raises(InputError, match="DJI_0005.JPG: image named by .* is missing on disk"):
         load_scene(small_span.sparse_gt, images)
     empty = tmp_path / "empty"
     empty.mkdir()
@@ -119,6 +121,46 @@ def test_bad_models_give_one_line_errors(small_span, tmp_path):
     rec.write_binary(empty)
     with pytest.raises(InputError, match="no registered images"):
         load_scene(empty, images)
+
+
+def test_bad_images_stop_or_are_skipped(small_span, tmp_path, caplog):
+    images = tmp_path / "images"
+    shutil.copytree(small_span.images, images)
+    (images / "DJI_0007.JPG").write_bytes(b"not a jpeg")
+    (images / "DJI_0009.JPG").unlink()
+    with pytest.raises(InputError, match="DJI_0007.JPG: image named by .* not a readable image"):
+        load_scene(small_span.sparse_gt, images)
+    with caplog.at_level(logging.WARNING):
+        scene = load_scene(small_span.sparse_gt, images, skip_bad_images=True)
+    assert len(scene) == 30
+    assert "DJI_0007.JPG" in caplog.text and "DJI_0009.JPG" in caplog.text
+    with pytest.raises(InputError, match=r"DJI_0007.JPG: cannot decode the image"):
+        read_image(images / "DJI_0007.JPG")
+
+
+def test_image_names_with_subfolders_and_undistorted_workspace(small_span, tmp_path):
+    # A model whose images live in sub-folders (one per flight strip), named as such.
+    rec = pycolmap.Reconstruction(small_span.sparse_gt)
+    images = tmp_path / "images"
+    for im in rec.images.values():
+        sub = f"strip{(int(im.name[4:8]) - 1) // 8}/{im.name}"
+        (images / sub).parent.mkdir(parents=True, exist_ok=True)
+        shutil.copy(small_span.images / im.name, images / sub)
+        im.name = sub
+    model = tmp_path / "sparse"
+    model.mkdir()
+    rec.write_text(model)
+    scene = load_scene(model, images)
+    assert len(scene) == 32 and scene.image("strip3/DJI_0032.JPG").path.is_file()
+    # COLMAP's image_undistorter layout: dense/{images,sparse}; images/ is found alone.
+    dense = tmp_path / "dense"
+    (dense / "sparse").mkdir(parents=True)
+    rec.write_binary(dense / "sparse")
+    (dense / "images").symlink_to(images)
+    assert resolve_inputs(None, dense) == (dense / "sparse", dense / "images")
+    assert resolve_inputs(images, model) == (model, images)
+    with pytest.raises(InputError, match="--image_path is needed"):
+        resolve_inputs(None, model)
 
 
 def test_true_wires_land_on_bright_rendered_pixels(small_span, small_scene):
