@@ -93,6 +93,13 @@ def write_point_cloud(
         )
 
     def write(tmp: Path) -> None:
+        if len(pts) == 0:  # open3d refuses to write an empty cloud; a reader expects a file
+            props = ["double x", "double y", "double z"]
+            props += ["double red", "double green", "double blue"] if colors is not None else []
+            props += ["int wire_id"] if labels is not None else []
+            header = ["ply", "format binary_little_endian 1.0", "element vertex 0"]
+            tmp.write_text("\n".join(header + [f"property {p}" for p in props]) + "\nend_header\n")
+            return
         if not o3d.t.io.write_point_cloud(str(tmp), pcd, write_ascii=False):
             raise OSError(f"{path}: open3d could not write the point cloud")
 

@@ -30,9 +30,11 @@ F64 = npt.NDArray[np.float64]
 @dataclass(kw_only=True)
 class PairsOptions:
     wire_azimuth_deg: float | None = None  # the wires' direction, clockwise from +y; None: estimate
-    wire_height: float = (
-        20.0  # typical wire height above ground for the corridor estimate (model units)
-    )
+    wire_height: float | None = None  # wire height above ground for the corridor (model
+    # units); None: the height at which the line evidence of several images agrees best
+    wire_heights_scanned: tuple[float, ...] = (4, 6, 8, 10, 12, 15, 18, 22, 26, 30, 35, 42, 50)
+    refine_offsets_deg: tuple[float, ...] = (-6, -4, -2, 0, 2, 4, 6)  # around each candidate
+    min_elevated_ratio: float = 1.3  # agreement at wire height / on the ground for "wires"
     num_direction_images: int = 6  # images used to estimate the direction and corridor
     analysis_width_px: int = 800  # those images are analysed at about this width
     scan_step_deg: float = 3.0  # orientation scan step
@@ -244,7 +246,13 @@ def estimate_corridor(scene: Scene, options: PairsOptions | None = None) -> Wire
     """Estimate the wires' direction (unless given) and their corridor from 2D line evidence."""
     options = options or PairsOptions()
     ground_z = float(np.median(scene.ground_height(scene.centers_in_world[:, :2])))
-    height = ground_z + options.wire_height
+    flying = float(np.median(scene.centers_in_world[:, 2])) - ground_z
+    heights = (
+        [options.wire_height]
+        if options.wire_height is not None
+        else [h for h in options.wire_heights_scanned if h < 0.8 * flying] or [0.3 * flying]
+    )
+    height = ground_z + float(np.median(heights))  # for image directions only
     views = _pick_spread(scene, options.num_direction_images)
     analysed = []  # (view, grey image at analysis scale, downscale factor)
     azimuths, weights = [], []
@@ -260,18 +268,33 @@ def estimate_corridor(scene: Scene, options: PairsOptions | None = None) -> Wire
             weights.append(contrast)
     az_arr, w_arr = np.asarray(azimuths), np.asarray(weights)
 
-    def line_planes(azimuth: float, z: float) -> list[F64]:
+    def line_pixels(azimuth: float) -> list[tuple[SceneImage, F64]]:
         return [
-            _to_plane(v, _line_pixels(v, g, f, _image_angle(v, azimuth, height), options), z)
+            (v, _line_pixels(v, g, f, _image_angle(v, azimuth, height), options))
             for v, g, f in analysed
         ]
 
+    def planes(pixels: list[tuple[SceneImage, F64]], z: float) -> list[F64]:
+        return [_to_plane(v, px, z) for v, px in pixels]
+
+    def elevation(azimuth: float) -> tuple[float, float]:
+        """(agreement at the best wire height / agreement on the ground, that height).
+
+        Road markings, field rows and shadows are long lines too, but on the ground: their
+        positions agree between images when projected to the ground, while wires agree
+        only at their own height."""
+        pixels = line_pixels(azimuth)
+        n = np.array([np.cos(np.deg2rad(azimuth)), -np.sin(np.deg2rad(azimuth))])
+        at_ground = _plan_consistency(planes(pixels, ground_z), n)
+        best = max((_plan_consistency(planes(pixels, ground_z + h), n), h) for h in heights)
+        return best[0] / max(at_ground, 1e-9), ground_z + best[1]
+
     if options.wire_azimuth_deg is not None:
         azimuth = float(options.wire_azimuth_deg) % 180.0
+        if len(heights) > 1:
+            height = elevation(azimuth)[1]
     else:
-        # Candidate directions that several images agree on. Road markings, field rows and
-        # shadows are long lines too, but on the ground: their positions agree between
-        # images when projected to the ground, while wires agree only at wire height.
+        # Candidate directions that several images agree on, judged by elevation.
         candidates: list[tuple[float, float]] = []
         remaining = np.ones(len(az_arr), bool)
         while remaining.any() and len(candidates) < 3:
@@ -281,17 +304,26 @@ def estimate_corridor(scene: Scene, options: PairsOptions | None = None) -> Wire
             near = np.abs((az_arr - cand + 90) % 180 - 90) < 5.0
             candidates.append((cand, float(w_arr[near & remaining].sum())))
             remaining &= ~near
+        # A candidate is a weighted mean of nearby directions (a road and the line beside
+        # it differ by a few degrees), and a few degrees off the wires their agreement is
+        # gone: judge each candidate at the best direction near it.
         scored = []
         for cand, weight in candidates:
-            n = np.array([np.cos(np.deg2rad(cand)), -np.sin(np.deg2rad(cand))])
-            at_wires = _plan_consistency(line_planes(cand, height), n)
-            at_ground = _plan_consistency(line_planes(cand, ground_z), n)
-            scored.append((cand, weight, at_wires / max(at_ground, 1e-9)))
+            tries = [
+                ((cand + d) % 180.0, *elevation((cand + d) % 180.0))
+                for d in options.refine_offsets_deg
+            ]
+            az_best, ratio, z_best = max(tries, key=lambda t: t[1])
+            scored.append((az_best, weight, ratio, z_best))
         logger.info(
-            "wire direction candidates (azimuth, weight, elevated/ground agreement): %s",
-            [(round(a, 1), round(w, 1), round(r, 2)) for a, w, r in scored],
+            "wire direction candidates (azimuth, weight, elevated/ground agreement, height "
+            "above ground): %s",
+            [
+                (round(a, 1), round(w, 1), round(r, 2), round(z - ground_z, 1))
+                for a, w, r, z in scored
+            ],
         )
-        elevated = [c for c in scored if c[2] > 1.0]
+        elevated = [c for c in scored if c[2] > options.min_elevated_ratio]
         if not scored:
             raise InputError(
                 f"{scene.image_path}: no wire direction found in the images; "
@@ -302,8 +334,11 @@ def estimate_corridor(scene: Scene, options: PairsOptions | None = None) -> Wire
                 "no line direction looks elevated above the ground; using the "
                 "strongest one (give --wire_azimuth_deg if it is not the wires)"
             )
-        azimuth = max(elevated or scored, key=lambda c: c[1])[0]
-    samples = line_planes(azimuth, height)
+        # The most clearly elevated direction; with none, the strongest one.
+        azimuth, _, _, height = (
+            max(elevated, key=lambda c: c[2]) if elevated else max(scored, key=lambda c: c[1])
+        )
+    samples = planes(line_pixels(azimuth), height)
     az = np.deg2rad(azimuth)
     direction, normal = np.array([np.sin(az), np.cos(az)]), np.array([np.cos(az), -np.sin(az)])
     xy = np.concatenate(samples)
@@ -342,11 +377,13 @@ def estimate_corridor(scene: Scene, options: PairsOptions | None = None) -> Wire
         decoded=tuple(v.path for v in views),
     )
     logger.info(
-        "wire corridor: azimuth %.1f° (%s), %.0f wide, %.0f long",
+        "wire corridor: azimuth %.1f° (%s), %.0f wide, %.0f long, wires about %.0f above "
+        "the ground",
         azimuth,
         "estimated" if corridor.from_images else "given",
         2 * corridor.half_width,
         s_hi - s_lo,
+        height - ground_z,
     )
     return corridor
 

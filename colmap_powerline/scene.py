@@ -19,6 +19,7 @@ import numpy.typing as npt
 import pycolmap
 from PIL import Image
 from scipy.interpolate import LinearNDInterpolator, NearestNDInterpolator
+from scipy.spatial import cKDTree
 
 from .errors import InputError
 
@@ -146,6 +147,26 @@ class SceneImage:
         return np.asarray(depth) / self.focal_px
 
 
+def _drop_stray_points(pts: FloatArray, k: int = 16) -> FloatArray:
+    """Sparse points without their SfM outliers: points far outside the bulk in plan view, and
+    points well below their plan neighbours (real SfM models have a few points hundreds of
+    metres off, which would otherwise size the cells or pull the ground down)."""
+    if len(pts) < 4 * k:
+        return pts
+    lo, hi = np.quantile(pts[:, :2], [0.01, 0.99], axis=0)
+    pad = 0.25 * (hi - lo)
+    inside = np.all((pts[:, :2] >= lo - pad) & (pts[:, :2] <= hi + pad), axis=1)
+    pts = pts[inside]
+    _, nn = cKDTree(pts[:, :2]).query(pts[:, :2], k=k + 1)
+    z_nn = pts[nn[:, 1:], 2]  # the neighbours, without the point itself
+    med = np.median(z_nn, axis=1)
+    mad = np.median(np.abs(z_nn - med[:, None]), axis=1)
+    # Only points below their neighbours pull the ground down; those above (towers, trees)
+    # are left to the cell quantile.
+    below = med - pts[:, 2]
+    return pts[below <= np.maximum(6.0 * 1.4826 * mad, 0.5)]
+
+
 @dataclass(frozen=True, eq=False)
 class GroundModel:
     """A terrain surface interpolated from the sparse points.
@@ -163,6 +184,7 @@ class GroundModel:
     def from_points(cls, pts_in_world: FloatArray, quantile: float = 0.2) -> GroundModel:
         if len(pts_in_world) < 3:
             raise InputError("the sparse model has fewer than 3 points: no ground surface")
+        pts_in_world = _drop_stray_points(pts_in_world)
         xy = pts_in_world[:, :2]
         extent = np.ptp(xy, axis=0)
         area = max(float(extent[0] * extent[1]), 1e-12)

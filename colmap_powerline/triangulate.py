@@ -28,7 +28,7 @@ class TriangulateOptions:
     min_wire_height: float = 3.0  # lowest wire above the ground (model units)
     max_wire_height: float = 60.0  # highest wire above the ground (model units)
     same_polarity: bool = True  # match bright with bright and dark with dark only
-    max_primitives: int = 20_000_000  # refuse to build more candidates than this per pair
+    max_primitives: int = 20_000_000  # a pair with more candidates than this is skipped
 
 
 @dataclass(frozen=True, eq=False)
@@ -124,8 +124,11 @@ def triangulate_pair(
     far = _ground_depth(pair, scene, uv_left, options.min_wire_height)
     near = _ground_depth(pair, scene, uv_left, options.max_wire_height)
     offset = pair.column_offset_px
-    u_right_min = left.u - offset - pair.disparity_px(near)
-    u_right_max = left.u - offset - pair.disparity_px(far)
+    # Clipped to the row: the keys below stack the rows, so an unclipped range would run
+    # into the neighbouring rows (a low flight gives disparities wider than the image).
+    width_right = float(pair.widths_px[1])
+    u_right_min = np.clip(left.u - offset - pair.disparity_px(near), 0.0, width_right)
+    u_right_max = np.clip(left.u - offset - pair.disparity_px(far), 0.0, width_right)
 
     big = float(max(pair.widths_px) + 10)
     key_right = right.rows * big + right.u
@@ -136,10 +139,15 @@ def triangulate_pair(
     counts = np.maximum(hi - lo, 0)
     total = int(counts.sum())
     if total > options.max_primitives:
-        raise ValueError(
-            f"pair {pair.left.name}|{pair.right.name}: {total} primitives exceed "
-            f"{options.max_primitives=}; the wire masks are too noisy"
+        logger.warning(
+            "pair %s|%s skipped: %d primitives exceed triangulate.max_primitives=%d (its "
+            "wire masks are mostly texture, e.g. field rows along the wires)",
+            pair.left.name,
+            pair.right.name,
+            total,
+            options.max_primitives,
         )
+        return empty
     if total == 0:
         return empty
     li = np.repeat(np.arange(len(left)), counts)
