@@ -33,7 +33,11 @@ class PairsOptions:
     wire_height: float | None = None  # wire height above ground for the corridor (model
     # units); None: the height at which the line evidence of several images agrees best
     wire_heights_scanned: tuple[float, ...] = (4, 6, 8, 10, 12, 15, 18, 22, 26, 30, 35, 42, 50)
-    refine_offsets_deg: tuple[float, ...] = (-6, -4, -2, 0, 2, 4, 6)  # around each candidate
+    candidate_tolerance_deg: float = 2.5  # image directions this close form one candidate
+    # (a road and the line beside it may differ by only a few degrees)
+    max_candidates: int = 5  # candidate directions judged by elevation
+    refine_offsets_deg: tuple[float, ...] = (-6, -4, -2, 2, 4, 6)  # tried around a candidate
+    refine_gain: float = 2.5  # ... and taken when its elevation ratio is this much higher
     min_elevated_ratio: float = 1.3  # agreement at wire height / on the ground for "wires"
     num_direction_images: int = 6  # images used to estimate the direction and corridor
     analysis_width_px: int = 800  # those images are analysed at about this width
@@ -277,8 +281,8 @@ def estimate_corridor(scene: Scene, options: PairsOptions | None = None) -> Wire
     def planes(pixels: list[tuple[SceneImage, F64]], z: float) -> list[F64]:
         return [_to_plane(v, px, z) for v, px in pixels]
 
-    def elevation(azimuth: float) -> tuple[float, float]:
-        """(agreement at the best wire height / agreement on the ground, that height).
+    def elevation(azimuth: float) -> tuple[float, float, float]:
+        """(agreement at the best wire height, that / agreement on the ground, that height).
 
         Road markings, field rows and shadows are long lines too, but on the ground: their
         positions agree between images when projected to the ground, while wires agree
@@ -287,34 +291,42 @@ def estimate_corridor(scene: Scene, options: PairsOptions | None = None) -> Wire
         n = np.array([np.cos(np.deg2rad(azimuth)), -np.sin(np.deg2rad(azimuth))])
         at_ground = _plan_consistency(planes(pixels, ground_z), n)
         best = max((_plan_consistency(planes(pixels, ground_z + h), n), h) for h in heights)
-        return best[0] / max(at_ground, 1e-9), ground_z + best[1]
+        return best[0], best[0] / max(at_ground, 1e-9), ground_z + best[1]
 
     if options.wire_azimuth_deg is not None:
         azimuth = float(options.wire_azimuth_deg) % 180.0
         if len(heights) > 1:
-            height = elevation(azimuth)[1]
+            height = elevation(azimuth)[2]
     else:
         # Candidate directions that several images agree on, judged by elevation.
         candidates: list[tuple[float, float]] = []
         remaining = np.ones(len(az_arr), bool)
-        while remaining.any() and len(candidates) < 3:
-            cand = _consensus_azimuth(az_arr[remaining], w_arr[remaining], min_share=0.0)
+        tol = options.candidate_tolerance_deg
+        while remaining.any() and len(candidates) < options.max_candidates:
+            cand = _consensus_azimuth(
+                az_arr[remaining], w_arr[remaining], tolerance_deg=tol, min_share=0.0
+            )
             if cand is None:
                 break
-            near = np.abs((az_arr - cand + 90) % 180 - 90) < 5.0
+            near = np.abs((az_arr - cand + 90) % 180 - 90) < tol
             candidates.append((cand, float(w_arr[near & remaining].sum())))
             remaining &= ~near
-        # A candidate is a weighted mean of nearby directions (a road and the line beside
-        # it differ by a few degrees), and a few degrees off the wires their agreement is
-        # gone: judge each candidate at the best direction near it.
         scored = []
+        max_weight = max((w for _, w in candidates), default=0.0)
         for cand, weight in candidates:
-            tries = [
-                ((cand + d) % 180.0, *elevation((cand + d) % 180.0))
-                for d in options.refine_offsets_deg
-            ]
-            az_best, ratio, z_best = max(tries, key=lambda t: t[1])
-            scored.append((az_best, weight, ratio, z_best))
+            _, ratio, z_best = elevation(cand)
+            if weight >= 0.25 * max_weight:
+                # A candidate is the mean of the images' strongest lines; a road can hide the
+                # line beside it a few degrees away. Take a nearby direction instead when it
+                # is clearly more elevated.
+                near = [
+                    ((cand + d) % 180.0, *elevation((cand + d) % 180.0)[1:])
+                    for d in options.refine_offsets_deg
+                ]
+                az_n, r_n, z_n = max(near, key=lambda t: t[1])
+                if r_n > options.refine_gain * max(ratio, 1e-9):
+                    cand, ratio, z_best = az_n, r_n, z_n
+            scored.append((cand, weight, ratio, z_best))
         logger.info(
             "wire direction candidates (azimuth, weight, elevated/ground agreement, height "
             "above ground): %s",
