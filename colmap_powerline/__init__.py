@@ -1,7 +1,34 @@
 """colmap-powerline: overhead power-line conductors in 3D from drone images and a COLMAP model."""
 
+from typing import Any
+
 from .errors import InputError
 from .scene import Scene, SceneImage, load_scene
 
-__all__ = ["InputError", "Scene", "SceneImage", "load_scene"]
+__all__ = [
+    "InputError",
+    "ReconstructionOptions",
+    "Scene",
+    "SceneImage",
+    "SfmOptions",
+    "load_scene",
+    "reconstruct",
+    "run_sfm",
+]
 __version__ = "0.1.0"
+
+_LAZY = {
+    "reconstruct": "pipeline",
+    "ReconstructionOptions": "pipeline",
+    "run_sfm": "sfm",
+    "SfmOptions": "sfm",
+}
+
+
+def __getattr__(name: str) -> Any:
+    # The pipeline pulls in open3d: import it only when it is used.
+    if name in _LAZY:
+        import importlib
+
+        return getattr(importlib.import_module(f".{_LAZY[name]}", __name__), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -15,6 +15,7 @@ from typing import Protocol
 
 import numpy as np
 import numpy.typing as npt
+import pycolmap
 from scipy.spatial import cKDTree
 
 from .synthetic import TrueWire
@@ -176,3 +177,48 @@ def evaluate(
     ghosts = sum(1 for fd in fit_dist if np.mean(fd.min(axis=0) > 0.30) > 0.5)
     outliers = float(np.mean(dmin > 0.30)) if len(points) else 0.0
     return Evaluation(scores, ghosts, outliers, len(points))
+
+
+def scene_alignment(
+    model: pycolmap.Reconstruction, truth: pycolmap.Reconstruction, max_error: float = 0.2
+) -> pycolmap.Sim3d:
+    """Similarity truth_from_model fitted on the scene itself (for evaluating SfM models).
+
+    Every model point seen in at least three images is triangulated again from the same
+    image measurements with the *true* cameras; the similarity between the model's points
+    and these is estimated robustly. Unlike an alignment of camera centres, it is not biased
+    by the focal length / flying height ambiguity of nadir flights.
+    """
+    cams = {}
+    for im in truth.images.values():
+        pose = im.cam_from_world()
+        rot = np.asarray(pose.rotation.matrix())
+        cams[im.name] = (truth.camera(im.camera_id), rot, np.asarray(im.projection_center()))
+    src, tgt = [], []
+    for pt in model.points3D.values():
+        if pt.track.length() < 3:
+            continue
+        a, b = np.zeros((3, 3)), np.zeros(3)
+        n = 0
+        for el in pt.track.elements:
+            im = model.image(el.image_id)
+            if im.name not in cams:
+                continue
+            cam, rot, centre = cams[im.name]
+            xy = cam.cam_from_img(np.asarray(im.points2D[el.point2D_idx].xy).reshape(1, 2))
+            d = rot.T @ np.r_[xy[0], 1.0]
+            d /= np.linalg.norm(d)
+            proj = np.eye(3) - np.outer(d, d)
+            a += proj
+            b += proj @ centre
+            n += 1
+        if n >= 3:
+            src.append(pt.xyz)
+            tgt.append(np.linalg.solve(a, b))
+    ransac = pycolmap.RANSACOptions()
+    ransac.max_error = max_error
+    ransac.random_seed = 0
+    found = pycolmap.estimate_sim3d_robust(np.array(src), np.array(tgt), ransac)
+    if found is None:
+        raise ValueError("no similarity fits the model's points to their true positions")
+    return found["tgt_from_src"] if isinstance(found, dict) else found
