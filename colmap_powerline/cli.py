@@ -147,6 +147,7 @@ def _reconstruction_options(args: argparse.Namespace) -> Any:
         debug=getattr(args, "debug", False),
         skip_bad_images=args.skip_bad_images,
         output_crs=getattr(args, "output_crs", None),
+        min_clearance_m=getattr(args, "min_clearance_m", None),
     )
     options.sfm.georeference = _georef_options(args)
     for key, value in vars(args).items():
@@ -222,6 +223,26 @@ def _cmd_sfm(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_fill(args: argparse.Namespace) -> int:
+    from .dense import fill
+
+    r = fill(
+        args.dense_path,
+        args.wires_path,
+        args.output_path,
+        include_measured=args.include_measured,
+        drop_stray=args.drop_stray,
+        las=args.las,
+    )
+    dropped = f", {r.num_dropped} stray points dropped" if args.drop_stray else ""
+    las = f" and {r.las_path}" if r.las_path else ""
+    print(
+        f"{r.num_dense} dense points ({r.num_ground} ground{dropped}) + {r.num_wire_points} "
+        f"wire points → {r.output_path}{las}"
+    )
+    return 0
+
+
 def _cmd_reconstruct(args: argparse.Namespace) -> int:
     from .pipeline import reconstruct
 
@@ -235,12 +256,20 @@ def _cmd_reconstruct(args: argparse.Namespace) -> int:
         f"{len(result.wires)} wires from {len(result.verified)} verified points "
         f"({len(result.pairs)} pairs) → {args.output_path}"
     )
-    for w in result.wires:
-        lo = w.lowest_point()
+    for w, m in zip(result.wires, result.measures, strict=True):
+        flag = f", {len(m.flagged)} stretches below the limit" if m.flagged else ""
         print(
-            f"  wire {w.wire_id}: {w.s_range[1] - w.s_range[0]:.1f}{units} long, "
-            f"sag {w.sag():.2f}{units}, lowest z {lo[2]:.2f}{units}, "
-            f"{len(w.point_indices)} points, rms {w.rms_residual:.3f}{units}"
+            f"  wire {w.wire_id}: span {m.span_length_m:.1f}{units}, sag {m.sag_max_m:.2f}{units}"
+            f" (mid-span {m.sag_midspan_m:.2f}), lowest z {m.lowest_point[2]:.2f}{units}, "
+            f"clearance {m.clearance_vertical_m:.2f}{units} vertical / "
+            f"{m.clearance_3d_m:.2f}{units} 3D, {len(w.point_indices)} points, "
+            f"rms {w.rms_residual:.3f}{units}{flag}"
+        )
+    if args.min_clearance_m is not None:
+        n = sum(1 for m in result.measures if m.flagged)
+        print(
+            f"clearance: {n} of {len(result.measures)} wires come closer than "
+            f"{args.min_clearance_m:g}{units} to the ground"
         )
     return 0
 
@@ -308,6 +337,12 @@ def build_parser() -> argparse.ArgumentParser:
         help="write coordinates in a projected CRS: 'utm' (the zone of the site) or "
         "'EPSG:…'; needs a model georeferenced from GPS",
     )
+    rec.add_argument(
+        "--min_clearance_m",
+        type=float,
+        default=None,
+        help="flag the wire stretches that come closer than this to the ground (vertically)",
+    )
     _add_common_input_flags(rec)
     _add_georef_flags(rec)
     rec.add_argument(
@@ -320,6 +355,21 @@ def build_parser() -> argparse.ArgumentParser:
     rec.add_argument("--debug", action="store_true", help="also write primitives.ply")
     _add_option_flags(rec, ReconstructionOptions)
     rec.set_defaults(func=_cmd_reconstruct)
+
+    fl = sub.add_parser("fill", help="merge the wires into a dense cloud (PLY, and LAS)")
+    fl.add_argument("--dense_path", type=Path, required=True, help="dense PLY (fused.ply)")
+    fl.add_argument("--wires_path", type=Path, required=True, help="wires.json of reconstruct")
+    fl.add_argument("--output_path", type=Path, required=True, help="merged PLY to write")
+    fl.add_argument(
+        "--include_measured", action="store_true", help="add the measured wire points too"
+    )
+    fl.add_argument(
+        "--drop_stray",
+        action="store_true",
+        help="drop dense points in a 1 m halo around the wires but not on them (reported)",
+    )
+    fl.add_argument("--las", action="store_true", help="also write LAS 1.4 beside the PLY")
+    fl.set_defaults(func=_cmd_fill)
 
     syn = sub.add_parser("synthetic", help="render a synthetic span with known wires")
     syn.add_argument("--output_path", type=Path, required=True)

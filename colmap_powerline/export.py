@@ -9,6 +9,7 @@ rewrite.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import logging
 import math
@@ -22,6 +23,7 @@ import numpy as np
 import numpy.typing as npt
 import open3d as o3d
 
+from .clearance import WireMeasures, measures_csv
 from .wires import FittedWire
 
 logger = logging.getLogger(__name__)
@@ -134,6 +136,24 @@ def _finite(obj: Any) -> Any:
     return obj
 
 
+def _convert_measures(m: WireMeasures, convert: Callable[[F64], F64]) -> WireMeasures:
+    """The measures with their points in another CRS (lengths and clearances unchanged)."""
+
+    def pt(p: list[float]) -> list[float]:
+        return convert(np.array([p], np.float64))[0].tolist()
+
+    return dataclasses.replace(
+        m,
+        lowest_point=pt(m.lowest_point),
+        clearance_vertical_point=pt(m.clearance_vertical_point),
+        clearance_3d_point=pt(m.clearance_3d_point),
+        flagged=[
+            dataclasses.replace(f, lowest_clearance_point=pt(f.lowest_clearance_point))
+            for f in m.flagged
+        ],
+    )
+
+
 def export_results(
     output_path: Path,
     *,
@@ -145,6 +165,7 @@ def export_results(
     ground_height: Callable[[F64], F64] | None = None,
     sample_step: float = 0.1,
     to_crs: tuple[Callable[[F64], F64], str] | None = None,
+    measures: Sequence[WireMeasures] | None = None,
 ) -> dict[str, Path]:
     """Write the output contract of DESIGN.md into ``output_path``; returns the files.
 
@@ -157,6 +178,12 @@ def export_results(
     out: dict[str, Path] = {}
     convert: Callable[[F64], F64] = (lambda xyz: xyz) if to_crs is None else to_crs[0]
     wire_docs = [w.to_json(ground_height, sample_step) for w in wires]
+    if measures is not None:
+        measures = [_convert_measures(m, convert) for m in measures] if to_crs else measures
+        for d, m in zip(wire_docs, measures, strict=True):
+            d["clearance_m"] = m.clearance_vertical_m
+            d["kind"] = m.kind
+            d["measures"] = m.to_json()
     if to_crs is not None:
         for d in wire_docs:
             for key in ("ends", "polyline"):
@@ -170,6 +197,9 @@ def export_results(
     }
     text = json.dumps(_finite(doc), allow_nan=False)
     out["wires.json"] = write_atomic(output_path / "wires.json", lambda p: p.write_text(text))
+    if measures is not None:
+        table = measures_csv(measures)
+        out["wires.csv"] = write_atomic(output_path / "wires.csv", lambda p: p.write_text(table))
     dense = [w.polyline(sample_step) for w in wires]
     ids = (
         np.concatenate([np.full(len(d), w.wire_id) for d, w in zip(dense, wires, strict=True)])

@@ -37,7 +37,8 @@ class PairsOptions:
     # (a road and the line beside it may differ by only a few degrees)
     max_candidates: int = 5  # candidate directions judged by elevation
     refine_offsets_deg: tuple[float, ...] = (-6, -4, -2, 2, 4, 6)  # tried around a candidate
-    refine_gain: float = 2.5  # ... and taken when its elevation ratio is this much higher
+    refine_gain: float = 1.6  # ... and taken when its elevation ratio is this much higher
+    refine_min_ratio: float = 2.0  # ... and clearly elevated
     min_elevated_ratio: float = 1.3  # agreement at wire height / on the ground for "wires"
     num_direction_images: int = 6  # images used to estimate the direction and corridor
     analysis_width_px: int = 800  # those images are analysed at about this width
@@ -324,7 +325,7 @@ def estimate_corridor(scene: Scene, options: PairsOptions | None = None) -> Wire
                     for d in options.refine_offsets_deg
                 ]
                 az_n, r_n, z_n = max(near, key=lambda t: t[1])
-                if r_n > options.refine_gain * max(ratio, 1e-9):
+                if r_n > options.refine_gain * max(ratio, 1e-9) and r_n > options.refine_min_ratio:
                     cand, ratio, z_best = az_n, r_n, z_n
             scored.append((cand, weight, ratio, z_best))
         logger.info(

@@ -19,6 +19,7 @@ import numpy as np
 import numpy.typing as npt
 from tqdm import tqdm
 
+from .clearance import WireMeasures, assign_kinds, measure_wire
 from .detect import DetectOptions, WireMask, detect_wires
 from .errors import InputError
 from .export import export_results
@@ -44,6 +45,7 @@ class ReconstructionOptions:
     wires: WiresOptions = field(default_factory=WiresOptions)
     sfm: SfmOptions = field(default_factory=SfmOptions)  # used when no model is given
     skip_bad_images: bool = False  # drop missing/undecodable images with a warning
+    min_clearance_m: float | None = None  # flag wire stretches closer to the ground
     output_crs: str | None = None  # write coordinates in this projected CRS ("utm" or
     # "EPSG:…"); needs a model georeferenced from GPS
     show_progress: bool = True  # progress bars on the loops over pairs and images
@@ -61,6 +63,7 @@ class ReconstructionResult:
     labels: npt.NDArray[np.int64]  # (N,) wire id of each verified point, -1 for none
     timings_s: dict[str, float]
     decoded: list[Path]  # every image file decoded, in order (repeats included)
+    measures: list[WireMeasures]  # sag and clearance of each wire
     outputs: dict[str, Path] = field(default_factory=dict)
 
 
@@ -210,9 +213,25 @@ def reconstruct(
         int((labels >= 0).sum()),
     )
 
+    t0 = time.perf_counter()
+    measures = [
+        measure_wire(w, scene.ground, "sparse points", options.min_clearance_m) for w in wires
+    ]
+    assign_kinds(measures)
+    timings["clearance"] = time.perf_counter() - t0
     result = ReconstructionResult(
-        scene, corridor, pairs, primitives, verified, wires, labels, timings, decoded
+        scene, corridor, pairs, primitives, verified, wires, labels, timings, decoded, measures
     )
+    if options.min_clearance_m is not None:
+        flagged = [m for m in measures if m.flagged]
+        log = logger.warning if flagged else logger.info
+        log(
+            "clearance: %d of %d wires come closer than %.2f to the ground (%d stretches)",
+            len(flagged),
+            len(measures),
+            options.min_clearance_m,
+            sum(len(m.flagged) for m in flagged),
+        )
     if output_path is not None:
         t0 = time.perf_counter()
         result.outputs = export_results(
@@ -226,6 +245,7 @@ def reconstruct(
             metadata=_metadata(result, image_path, input_path, options, georef),
             ground_height=scene.ground_height,
             to_crs=_crs_function(georef, options.output_crs),
+            measures=measures,
         )
         timings["export"] = time.perf_counter() - t0
     return result

@@ -2,16 +2,17 @@
 
 from __future__ import annotations
 
+import csv
 import json
 
 import numpy as np
 import pytest
 
 from colmap_powerline.cli import main
-from colmap_powerline.evaluate import evaluate
+from colmap_powerline.evaluate import distance_to_polyline, evaluate
 from colmap_powerline.export import read_point_cloud
 from colmap_powerline.pipeline import ReconstructionOptions, reconstruct
-from colmap_powerline.synthetic import load_true_wires
+from colmap_powerline.synthetic import Terrain, load_true_wires
 
 
 @pytest.fixture(scope="module")
@@ -105,3 +106,36 @@ def test_cli_errors_are_one_line(tmp_path, capsys):
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0 and "nope" in err and "does not exist" in err
     assert not (tmp_path / "out").exists()
+
+
+def test_sag_and_clearance_against_the_truth(run, medium_span):
+    """Sag within 5 cm and clearance within 10 cm of the true wires over the true terrain."""
+    result, out = run
+    truth = load_true_wires(medium_span.truth_wires)
+    terrain = Terrain.load(medium_span.terrain)
+    rows = list(csv.DictReader((out / "wires.csv").open()))
+    assert [int(r["wire_id"]) for r in rows] == [w.wire_id for w in result.wires]
+    checked = 0
+    for wire, m, row in zip(result.wires, result.measures, rows, strict=True):
+        poly = wire.polyline(1.0)
+        dist = [np.median(distance_to_polyline(poly, t.polyline(0.05))) for t in truth]
+        t = truth[int(np.argmin(dist))]
+        if min(dist) > 0.3 or t.kind != "conductor":
+            continue
+        # The true wire over the same stretch, sampled every 5 cm.
+        ends = wire.points(np.asarray(wire.s_range))
+        s_ends = (ends[:, :2] - np.asarray(t.attach_a[:2])) @ t.direction_xy
+        s = np.linspace(s_ends.min(), s_ends.max(), 4001)
+        pts = t.points(s)
+        chord = pts[0, 2] + (pts[-1, 2] - pts[0, 2]) * (s - s[0]) / (s[-1] - s[0])
+        assert m.sag_max_m == pytest.approx(np.max(chord - pts[:, 2]), abs=0.05)
+        mid = np.interp(0.5 * (s[0] + s[-1]), s, chord - pts[:, 2])
+        assert m.sag_midspan_m == pytest.approx(mid, abs=0.05)
+        clear = pts[:, 2] - terrain.height(pts[:, :2])
+        print(wire.wire_id, m.clearance_vertical_m, clear.min(), m.sag_max_m)
+        assert m.clearance_vertical_m == pytest.approx(clear.min(), abs=0.10)
+        assert m.span_length_m == pytest.approx(np.ptp(s), abs=0.05)
+        assert float(row["sag_max_m"]) == pytest.approx(m.sag_max_m, abs=0.001)
+        assert m.clearance_3d_m <= m.clearance_vertical_m + 1e-9
+        checked += 1
+    assert checked >= 5

@@ -1,0 +1,376 @@
+"""Fill the voids of a dense cloud with the wires: ``colmap-powerline fill``.
+
+Dense matching (COLMAP's ``fused.ply``, Pix4D, Metashape) leaves the wires out. :func:`fill`
+streams a dense PLY (binary or ASCII; xyz plus optional colours and normals, as COLMAP
+writes it) in chunks through a memory map, so memory stays bounded whatever its size; adds
+the fitted wires (every 0.1 m, and the measured points with ``include_measured``) with a
+class; optionally drops the dense cloud's stray points around the wires (the halo dense
+matching leaves along them: within ``halo_m`` of a wire's track but off the wire); and
+writes PLY and, with ``las``, LAS 1.4 with ASPRS classes.
+
+Classes: 1 unclassified, 2 ground (dense points within ``ground_tolerance_m`` of the ground
+surface, estimated from the dense cloud's own lowest points per cell), 13 shield wire,
+14 conductor.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import numpy.typing as npt
+from scipy.spatial import cKDTree
+
+from .errors import InputError
+from .export import read_point_cloud, write_atomic
+from .las import CONDUCTOR, GROUND, UNCLASSIFIED, WIRE_CLASS, write_las
+
+logger = logging.getLogger(__name__)
+
+F64 = npt.NDArray[np.float64]
+_PLY_TYPES = {
+    "char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1", "short": "i2", "int16": "i2",
+    "ushort": "u2", "uint16": "u2", "int": "i4", "int32": "i4", "uint": "u4", "uint32": "u4",
+    "float": "f4", "float32": "f4", "double": "f8", "float64": "f8",
+}  # fmt: skip
+
+
+@dataclass(frozen=True)
+class PlyVertices:
+    """The vertex block of a PLY file, readable in chunks."""
+
+    path: Path
+    count: int
+    dtype: np.dtype
+    offset: int  # bytes before the vertex data
+    binary: bool
+
+    def chunks(self, size: int = 1_000_000) -> Iterator[np.ndarray]:
+        """Structured arrays of at most ``size`` vertices, in file order."""
+        if self.binary:
+            data = np.memmap(self.path, self.dtype, mode="r", offset=self.offset, shape=self.count)
+            for k in range(0, self.count, size):
+                yield np.array(data[k : k + size])
+            return
+        with self.path.open("rb") as f:
+            f.seek(self.offset)
+            left = self.count
+            while left > 0:
+                n = min(size, left)
+                rows = np.loadtxt(f, dtype=np.float64, max_rows=n, ndmin=2)
+                if len(rows) < n:
+                    raise InputError(
+                        f"{self.path}: PLY ends after {self.count - left + len(rows)}"
+                        f" of {self.count} vertices"
+                    )
+                out = np.zeros(n, self.dtype)
+                for i, name in enumerate(self.dtype.names or ()):
+                    out[name] = rows[:, i]
+                left -= n
+                yield out
+
+
+def open_ply(path: Path | str) -> PlyVertices:
+    """Parse a PLY header (one-line errors for anything this cannot read)."""
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"{path}: dense cloud does not exist")
+    with path.open("rb") as f:
+        if f.readline().strip() != b"ply":
+            raise InputError(f"{path}: not a PLY file")
+        fmt, count, props, in_vertex, seen_vertex = None, 0, [], False, False
+        while True:
+            line = f.readline()
+            if not line:
+                raise InputError(f"{path}: PLY header has no end_header")
+            words = line.decode("ascii", "replace").split()
+            if not words or words[0] in ("comment", "obj_info"):
+                continue
+            if words[0] == "format":
+                fmt = words[1]
+            elif words[0] == "element":
+                if seen_vertex and words[1] != "vertex":
+                    in_vertex = False  # faces etc. follow the vertices: not needed
+                    continue
+                if words[1] != "vertex":
+                    raise InputError(f"{path}: element {words[1]!r} before the vertices")
+                in_vertex, seen_vertex, count = True, True, int(words[2])
+            elif words[0] == "property" and in_vertex:
+                if words[1] == "list":
+                    raise InputError(f"{path}: list property in the vertices")
+                if words[1] not in _PLY_TYPES:
+                    raise InputError(f"{path}: unknown PLY type {words[1]!r}")
+                props.append((words[2], _PLY_TYPES[words[1]]))
+            elif words[0] == "end_header":
+                offset = f.tell()
+                break
+    if fmt not in ("binary_little_endian", "binary_big_endian", "ascii"):
+        raise InputError(f"{path}: unsupported PLY format {fmt!r}")
+    names = [n for n, _ in props]
+    if not {"x", "y", "z"} <= set(names):
+        raise InputError(f"{path}: PLY vertices have no x, y, z")
+    endian = ">" if fmt == "binary_big_endian" else "<"
+    dtype = np.dtype([(n, endian + t) for n, t in props])
+    binary = fmt != "ascii"
+    if binary and path.stat().st_size < offset + count * dtype.itemsize:
+        raise InputError(f"{path}: PLY is truncated ({count} vertices announced)")
+    return PlyVertices(path, count, dtype, offset, binary)
+
+
+def _xyz(chunk: np.ndarray) -> F64:
+    return np.c_[chunk["x"], chunk["y"], chunk["z"]].astype(np.float64)
+
+
+def _rgb(chunk: np.ndarray) -> npt.NDArray[np.uint8] | None:
+    names = chunk.dtype.names or ()
+    for r, g, b in (("red", "green", "blue"), ("r", "g", "b")):
+        if {r, g, b} <= set(names):
+            return np.c_[chunk[r], chunk[g], chunk[b]].astype(np.uint8)
+    return None
+
+
+@dataclass
+class WireSet:
+    """The wires of a ``wires.json``: points every 0.1 m (+ measured), class, id."""
+
+    fitted: F64
+    fitted_id: npt.NDArray[np.int32]
+    fitted_class: npt.NDArray[np.uint8]
+    measured: F64
+    measured_id: npt.NDArray[np.int32]
+    measured_class: npt.NDArray[np.uint8]
+    crs: str
+
+
+def load_wires(wires_path: Path | str) -> WireSet:
+    """Read ``wires.json`` (and ``wire_points.ply`` beside it, when there)."""
+    wires_path = Path(wires_path)
+    try:
+        doc = json.loads(wires_path.read_text())
+        wires = doc["wires"]
+        polys = [np.asarray(w["polyline"], np.float64).reshape(-1, 3) for w in wires]
+    except FileNotFoundError:
+        raise InputError(f"{wires_path}: wires file does not exist") from None
+    except (ValueError, KeyError, TypeError) as e:
+        raise InputError(f"{wires_path}: not a colmap-powerline wires.json ({e})") from None
+    cls_of = {int(w["id"]): WIRE_CLASS.get(w.get("kind", "conductor"), CONDUCTOR) for w in wires}
+    ids = (
+        np.concatenate(
+            [np.full(len(p), w["id"], np.int32) for p, w in zip(polys, wires, strict=True)]
+        )
+        if wires
+        else np.zeros(0, np.int32)
+    )
+    measured = np.zeros((0, 3))
+    measured_id = np.zeros(0, np.int32)
+    ply = wires_path.parent / "wire_points.ply"
+    if ply.exists():
+        pts, _, labels = read_point_cloud(ply)
+        if labels is not None:
+            on_wire = labels >= 0
+            measured, measured_id = pts[on_wire], labels[on_wire].astype(np.int32)
+    return WireSet(
+        fitted=np.concatenate(polys) if polys else np.zeros((0, 3)),
+        fitted_id=ids,
+        fitted_class=np.array([cls_of[i] for i in ids], np.uint8),
+        measured=measured,
+        measured_id=measured_id,
+        measured_class=np.array([cls_of.get(int(i), CONDUCTOR) for i in measured_id], np.uint8),
+        crs=str(doc.get("crs", "model frame")),
+    )
+
+
+@dataclass
+class FillResult:
+    output_path: Path
+    las_path: Path | None
+    num_dense: int
+    num_dropped: int
+    num_ground: int
+    num_wire_points: int
+
+
+def _ground_grid(ply: PlyVertices, cell: float, chunk: int) -> tuple[F64, float, F64]:
+    """Lowest-quantile height per plan cell (a ground surface), built in one streamed pass."""
+    lo = np.full(2, np.inf)
+    for c in ply.chunks(chunk):
+        xyz = _xyz(c)
+        lo = np.minimum(lo, xyz[:, :2].min(axis=0))
+    mins: dict[int, float] = {}
+    width = 1 << 20
+    for c in ply.chunks(chunk):
+        xyz = _xyz(c)
+        ij = np.floor((xyz[:, :2] - lo) / cell).astype(np.int64)
+        key = ij[:, 0] * width + ij[:, 1]
+        order = np.argsort(key, kind="stable")
+        k_sorted = key[order]
+        starts = np.flatnonzero(np.r_[True, k_sorted[1:] != k_sorted[:-1]])
+        z_sorted = xyz[order, 2]
+        # per chunk: the 5th percentile of each cell, then the minimum over chunks
+        for s, e in zip(starts, np.r_[starts[1:], len(order)], strict=True):
+            k = int(k_sorted[s])
+            q = (
+                float(np.quantile(z_sorted[s:e], 0.05))
+                if e - s > 20
+                else float(z_sorted[s:e].min())
+            )
+            mins[k] = min(mins.get(k, np.inf), q)
+    keys = np.fromiter(mins.keys(), np.int64, len(mins))
+    z = np.fromiter(mins.values(), np.float64, len(mins))
+    xy = lo + (np.c_[keys // width, keys % width] + 0.5) * cell
+    return np.c_[xy, z], cell, lo
+
+
+def fill(
+    dense_path: Path | str,
+    wires_path: Path | str,
+    output_path: Path | str,
+    *,
+    include_measured: bool = False,
+    drop_stray: bool = False,
+    halo_m: float = 1.0,
+    wire_tolerance_m: float = 0.3,
+    ground_cell_m: float = 1.0,
+    ground_tolerance_m: float = 0.3,
+    las: bool = False,
+    crs_wkt: str | None = None,
+    chunk: int = 1_000_000,
+) -> FillResult:
+    """Merge the wires into a dense cloud; write ``output_path`` (PLY) and, with ``las``,
+    the same points as LAS beside it (``.las``)."""
+    ply = open_ply(dense_path)
+    wires = load_wires(wires_path)
+    output_path = Path(output_path)
+    if output_path.suffix.lower() != ".ply":
+        raise InputError(f"{output_path}: the merged cloud is written as PLY (name it .ply)")
+    wire_pts = np.concatenate(
+        [wires.fitted, wires.measured if include_measured else np.zeros((0, 3))]
+    )
+    wire_id = np.concatenate(
+        [wires.fitted_id, wires.measured_id if include_measured else np.zeros(0, np.int32)]
+    )
+    wire_cls = np.concatenate(
+        [wires.fitted_class, wires.measured_class if include_measured else np.zeros(0, np.uint8)]
+    )
+    ground_pts, _, lo = _ground_grid(ply, ground_cell_m, chunk)
+    ground_tree = cKDTree(ground_pts[:, :2])
+    wire_tree = cKDTree(wires.fitted) if len(wires.fitted) else None
+    wire_tree_xy = cKDTree(wires.fitted[:, :2]) if len(wires.fitted) else None
+
+    def classify(c: np.ndarray) -> tuple[npt.NDArray[np.bool_], npt.NDArray[np.uint8]]:
+        xyz = _xyz(c)
+        _, gi = ground_tree.query(xyz[:, :2])
+        cls = np.where(
+            np.abs(xyz[:, 2] - ground_pts[gi, 2]) <= ground_tolerance_m, GROUND, UNCLASSIFIED
+        ).astype(np.uint8)
+        keep = np.ones(len(xyz), bool)
+        if drop_stray and wire_tree is not None and wire_tree_xy is not None:
+            d_xy, wi = wire_tree_xy.query(xyz[:, :2], distance_upper_bound=halo_m)
+            near = np.isfinite(d_xy)
+            dz = np.full(len(xyz), np.inf)
+            dz[near] = np.abs(xyz[near, 2] - wires.fitted[wi[near], 2])
+            in_halo = near & (dz <= halo_m)
+            if in_halo.any():
+                d3, _ = wire_tree.query(xyz[in_halo])
+                stray = np.zeros(len(xyz), bool)
+                stray[np.flatnonzero(in_halo)[d3 > wire_tolerance_m]] = True
+                keep &= ~stray
+        return keep, cls
+
+    keeps, n_ground = [], 0
+    for c in ply.chunks(chunk):
+        keep, cls = classify(c)
+        keeps.append(keep)
+        n_ground += int(((cls == GROUND) & keep).sum())
+    keep_all = np.concatenate(keeps) if keeps else np.zeros(0, bool)
+    n_keep = int(keep_all.sum())
+    n_out = n_keep + len(wire_pts)
+
+    def chunks_out() -> Iterator[tuple[F64, npt.NDArray, npt.NDArray, npt.NDArray[np.uint8]]]:
+        k = 0
+        for c in ply.chunks(chunk):
+            keep = keep_all[k : k + len(c)]
+            k += len(c)
+            _, cls = classify(c)
+            rgb = _rgb(c)
+            if rgb is None:
+                rgb = np.full((len(c), 3), 160, np.uint8)
+            yield _xyz(c)[keep], cls[keep], np.full(int(keep.sum()), -1, np.int32), rgb[keep]
+        colors = np.where(wire_cls[:, None] == CONDUCTOR, [255, 40, 40], [40, 40, 255])
+        yield wire_pts, wire_cls, wire_id, colors.astype(np.uint8)
+
+    out_dtype = np.dtype(
+        [
+            ("x", "<f8"),
+            ("y", "<f8"),
+            ("z", "<f8"),
+            ("red", "u1"),
+            ("green", "u1"),
+            ("blue", "u1"),
+            ("class", "u1"),
+            ("wire_id", "<i4"),
+        ]
+    )
+
+    def write_ply(tmp: Path) -> None:
+        header = (
+            "ply\nformat binary_little_endian 1.0\n"
+            f"comment colmap-powerline fill: {ply.path.name} + {Path(wires_path).name} "
+            f"(coordinates: {wires.crs})\n"
+            f"element vertex {n_out}\n"
+            + "".join(
+                f"property {t} {n}\n"
+                for n, t in (
+                    ("x", "double"),
+                    ("y", "double"),
+                    ("z", "double"),
+                    ("red", "uchar"),
+                    ("green", "uchar"),
+                    ("blue", "uchar"),
+                    ("class", "uchar"),
+                    ("wire_id", "int"),
+                )
+            )
+            + "end_header\n"
+        )
+        with tmp.open("wb") as f:
+            f.write(header.encode("ascii"))
+            for xyz, cls, wid, rgb in chunks_out():
+                rec = np.zeros(len(xyz), out_dtype)
+                rec["x"], rec["y"], rec["z"] = xyz[:, 0], xyz[:, 1], xyz[:, 2]
+                rec["red"], rec["green"], rec["blue"] = rgb[:, 0], rgb[:, 1], rgb[:, 2]
+                rec["class"], rec["wire_id"] = cls, wid
+                f.write(rec.tobytes())
+
+    write_atomic(output_path, write_ply)
+    las_path = None
+    if las:
+        offset = lo_offset(ply, chunk)
+        if len(wire_pts):
+            offset = np.minimum(offset, wire_pts.min(axis=0))
+        las_path = write_las(output_path.with_suffix(".las"), chunks_out(), offset, crs_wkt)
+    result = FillResult(
+        output_path, las_path, ply.count, ply.count - n_keep, n_ground, len(wire_pts)
+    )
+    logger.info(
+        "fill: %d dense points (%d ground%s) + %d wire points → %s%s",
+        ply.count,
+        n_ground,
+        f", {result.num_dropped} stray points dropped" if drop_stray else "",
+        len(wire_pts),
+        output_path,
+        f" and {las_path}" if las_path else "",
+    )
+    return result
+
+
+def lo_offset(ply: PlyVertices, chunk: int) -> F64:
+    """The cloud's minimum corner (LAS offset)."""
+    lo = np.full(3, np.inf)
+    for c in ply.chunks(chunk):
+        lo = np.minimum(lo, _xyz(c).min(axis=0))
+    return lo
