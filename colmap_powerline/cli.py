@@ -148,6 +148,9 @@ def _reconstruction_options(args: argparse.Namespace) -> Any:
         skip_bad_images=args.skip_bad_images,
         output_crs=getattr(args, "output_crs", None),
         min_clearance_m=getattr(args, "min_clearance_m", None),
+        dense_path=getattr(args, "dense_path", None),
+        las=getattr(args, "las", False),
+        report=getattr(args, "report", False),
     )
     options.sfm.georeference = _georef_options(args)
     for key, value in vars(args).items():
@@ -336,6 +339,17 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         help="write coordinates in a projected CRS: 'utm' (the zone of the site) or "
         "'EPSG:…'; needs a model georeferenced from GPS",
+    )
+    rec.add_argument(
+        "--dense_path",
+        type=Path,
+        default=None,
+        help="dense cloud (fused.ply): its ground for the clearance; the wires are merged "
+        "into it as OUTPUT/merged.ply",
+    )
+    rec.add_argument("--las", action="store_true", help="also write wires.las (LAS 1.4)")
+    rec.add_argument(
+        "--report", action="store_true", help="also write OUTPUT/report/ (figures + HTML)"
     )
     rec.add_argument(
         "--min_clearance_m",

@@ -28,6 +28,7 @@ from scipy.spatial import cKDTree
 from .errors import InputError
 from .export import read_point_cloud, write_atomic
 from .las import CONDUCTOR, GROUND, UNCLASSIFIED, WIRE_CLASS, write_las
+from .scene import GroundModel
 
 logger = logging.getLogger(__name__)
 
@@ -223,6 +224,12 @@ def _ground_grid(ply: PlyVertices, cell: float, chunk: int) -> tuple[F64, float,
     z = np.fromiter(mins.values(), np.float64, len(mins))
     xy = lo + (np.c_[keys // width, keys % width] + 0.5) * cell
     return np.c_[xy, z], cell, lo
+
+
+def dense_ground(ply: PlyVertices, cell: float = 1.0, chunk: int = 1_000_000) -> GroundModel:
+    """A ground surface from a dense cloud (lowest points per ``cell``), streamed."""
+    pts, cell, _ = _ground_grid(ply, cell, chunk)
+    return GroundModel(pts[:, :2], pts[:, 2], cell)
 
 
 def fill(

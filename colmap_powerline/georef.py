@@ -285,3 +285,25 @@ def _to_enu(lat_lon_alt: dict[str, F64], origin: tuple[float, float, float]) -> 
     names = list(lat_lon_alt)
     enu = wgs84_to_enu(np.array([lat_lon_alt[n] for n in names]), origin)
     return dict(zip(names, enu, strict=True))
+
+
+def crs_wkt(georef: Georeference | None, output_crs: str | None) -> str | None:
+    """WKT of the CRS the outputs are written in, for LAS headers; None when not geographic.
+
+    With ``output_crs`` that CRS. In the local ENU frame itself: a transverse Mercator
+    centred on the frame's origin on WGS84, which matches ENU east/north to < 1 mm within
+    1 km of the origin (heights stay ENU heights, within 1 cm of ellipsoidal heights
+    inside 350 m of it).
+    """
+    import pyproj
+
+    if georef is None or georef.origin_wgs84 is None:
+        return None
+    lat, lon, alt = georef.origin_wgs84
+    if output_crs:
+        crs = f"EPSG:{utm_epsg(lat, lon)}" if output_crs.lower() == "utm" else output_crs
+        return pyproj.CRS.from_user_input(crs).to_wkt()
+    local = (
+        f"+proj=tmerc +lat_0={lat} +lon_0={lon} +k=1 +x_0=0 +y_0=0 +ellps=WGS84 +units=m +no_defs"
+    )
+    return pyproj.CRS.from_proj4(local).to_wkt()

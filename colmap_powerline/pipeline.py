@@ -20,12 +20,15 @@ import numpy.typing as npt
 from tqdm import tqdm
 
 from .clearance import WireMeasures, assign_kinds, measure_wire
+from .dense import dense_ground, fill, open_ply
 from .detect import DetectOptions, WireMask, detect_wires
 from .errors import InputError
-from .export import export_results
-from .georef import Georeference, enu_to_crs, read_georeference
+from .export import export_results, wire_colors
+from .georef import Georeference, crs_wkt, enu_to_crs, read_georeference
+from .las import CONDUCTOR, WIRE_CLASS, write_las
 from .pairs import ImagePair, PairsOptions, WireCorridor, estimate_corridor, select_pairs
 from .rectify import RectifiedPair, RectifyOptions, rectify_pair
+from .report import write_report
 from .scene import Scene, SceneImage, load_scene, read_image, resolve_inputs
 from .sfm import SfmOptions, run_sfm
 from .triangulate import Primitives, TriangulateOptions, triangulate_pair, wire_centres
@@ -46,6 +49,10 @@ class ReconstructionOptions:
     sfm: SfmOptions = field(default_factory=SfmOptions)  # used when no model is given
     skip_bad_images: bool = False  # drop missing/undecodable images with a warning
     min_clearance_m: float | None = None  # flag wire stretches closer to the ground
+    dense_path: Path | None = None  # dense cloud: its ground for the clearance, and the
+    # wires merged into it (OUT/merged.ply)
+    las: bool = False  # also write OUT/wires.las (and OUT/merged.las with dense_path)
+    report: bool = False  # also write OUT/report/ (figures + index.html)
     output_crs: str | None = None  # write coordinates in this projected CRS ("utm" or
     # "EPSG:…"); needs a model georeferenced from GPS
     show_progress: bool = True  # progress bars on the loops over pairs and images
@@ -214,9 +221,10 @@ def reconstruct(
     )
 
     t0 = time.perf_counter()
-    measures = [
-        measure_wire(w, scene.ground, "sparse points", options.min_clearance_m) for w in wires
-    ]
+    ground, source = scene.ground, "sparse points"
+    if options.dense_path is not None:
+        ground, source = dense_ground(open_ply(options.dense_path)), "dense cloud"
+    measures = [measure_wire(w, ground, source, options.min_clearance_m) for w in wires]
     assign_kinds(measures)
     timings["clearance"] = time.perf_counter() - t0
     result = ReconstructionResult(
@@ -247,8 +255,55 @@ def reconstruct(
             to_crs=_crs_function(georef, options.output_crs),
             measures=measures,
         )
+        crs = _crs_function(georef, options.output_crs)
+        wkt = crs_wkt(georef, options.output_crs)
+        if options.las:
+            result.outputs["wires.las"] = _write_wires_las(
+                Path(output_path), result, crs[0] if crs else None, wkt
+            )
+        if options.dense_path is not None:
+            merged = fill(
+                options.dense_path,
+                result.outputs["wires.json"],
+                Path(output_path) / "merged.ply",
+                las=options.las,
+                crs_wkt=wkt,
+            )
+            result.outputs["merged.ply"] = merged.output_path
+            if merged.las_path:
+                result.outputs["merged.las"] = merged.las_path
         timings["export"] = time.perf_counter() - t0
+        if options.report:
+            t0 = time.perf_counter()
+            result.outputs["report"] = write_report(
+                result, Path(output_path), options, georef is not None
+            )
+            timings["report"] = time.perf_counter() - t0
     return result
+
+
+def _write_wires_las(
+    out: Path,
+    result: ReconstructionResult,
+    convert: Callable[[npt.NDArray[np.float64]], npt.NDArray[np.float64]] | None,
+    wkt: str | None,
+) -> Path:
+    """Measured (assigned) and fitted wire points as LAS, classed 14 / 13 by wire kind."""
+    kind = {
+        w.wire_id: WIRE_CLASS[m.kind] for w, m in zip(result.wires, result.measures, strict=True)
+    }
+    on = result.labels >= 0
+    measured, mid = result.verified.pts_in_world[on], result.labels[on]
+    fitted = [w.polyline(0.1) for w in result.wires]
+    fid = [np.full(len(p), w.wire_id) for p, w in zip(fitted, result.wires, strict=True)]
+    pts = np.concatenate([measured, *fitted]) if fitted else measured
+    ids = np.concatenate([mid, *fid]).astype(np.int32) if fitted else mid.astype(np.int32)
+    if convert is not None and len(pts):
+        pts = convert(pts)
+    cls = np.array([kind.get(int(i), CONDUCTOR) for i in ids], np.uint8)
+    colors = wire_colors(ids)
+    offset = pts.min(axis=0) if len(pts) else np.zeros(3)
+    return write_las(out / "wires.las", [(pts, cls, ids, colors)], offset, wkt)
 
 
 def _crs_function(

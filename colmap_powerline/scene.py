@@ -202,7 +202,7 @@ class GroundModel:
             if e - s < 3 and len(starts) > 3:
                 continue
             z = pts_in_world[members, 2]
-            zq = np.quantile(z, quantile)
+            zq = float(np.quantile(z, quantile))
             low = members[z <= zq + 1e-12]
             cells_xy.append(xy[low].mean(axis=0))
             cells_z.append(zq)

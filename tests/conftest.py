@@ -34,3 +34,45 @@ def medium_span(tmp_path_factory):
         tmp_path_factory.mktemp("span_medium") / "span",
         SyntheticSpanOptions(scale=0.5, show_progress=False),
     )
+
+
+def write_fused_ply(path, xyz, rgb=None):
+    """A dense cloud exactly as COLMAP's stereo_fusion writes fused.ply: binary little
+    endian, float x y z nx ny nz, uchar red green blue."""
+    import numpy as np
+
+    dtype = np.dtype(
+        [("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("nx", "<f4"), ("ny", "<f4"),
+         ("nz", "<f4"), ("red", "u1"), ("green", "u1"), ("blue", "u1")]
+    )  # fmt: skip
+    pts = np.zeros(len(xyz), dtype)
+    pts["x"], pts["y"], pts["z"] = xyz[:, 0], xyz[:, 1], xyz[:, 2]
+    pts["nz"] = 1.0
+    if rgb is not None:
+        pts["red"], pts["green"], pts["blue"] = rgb[:, 0], rgb[:, 1], rgb[:, 2]
+    header = (
+        "ply\nformat binary_little_endian 1.0\n"
+        f"element vertex {len(xyz)}\n"
+        + "".join(f"property float {a}\n" for a in ("x", "y", "z", "nx", "ny", "nz"))
+        + "property uchar red\nproperty uchar green\nproperty uchar blue\nend_header\n"
+    )
+    with open(path, "wb") as f:
+        f.write(header.encode())
+        f.write(pts.tobytes())
+    return path
+
+
+@pytest.fixture(scope="session")
+def medium_dense(medium_span, tmp_path_factory):
+    """A dense cloud of the medium span's true terrain (0.25 m grid, 2 cm noise, no wires),
+    as dense matching would give it: the ground for clearance and the cloud to fill."""
+    import numpy as np
+
+    from colmap_powerline.synthetic import Terrain
+
+    terrain = Terrain.load(medium_span.terrain)
+    x, y = np.meshgrid(np.arange(-70, 70, 0.25), np.arange(-70, 70, 0.25))
+    xy = np.c_[x.ravel(), y.ravel()]
+    z = terrain.height(xy) + np.random.default_rng(1).normal(0, 0.02, len(xy))
+    rgb = np.full((len(xy), 3), 90, np.uint8)
+    return write_fused_ply(tmp_path_factory.mktemp("dense") / "fused.ply", np.c_[xy, z], rgb)

@@ -1,0 +1,279 @@
+"""``OUT/report/``: figures a person looks at, and an HTML page that links them.
+
+- ``plan.png``: the wires in plan over the ground points, coloured by height.
+- ``profile_<id>.png``: per wire, its height and the ground below it along the span, the
+  clearance, the chord and the sag, and the stretches below ``min_clearance_m`` in red.
+- ``pair_<k>.png``: the left image of each pair, with the wire pixels the detector found
+  there and the final wires projected onto it.
+- ``cameras.png``: camera positions, the chosen pairs and the wire corridor.
+"""
+
+from __future__ import annotations
+
+import html
+import logging
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from .export import wire_colors, write_atomic  # noqa: E402
+
+if TYPE_CHECKING:
+    from .pipeline import ReconstructionOptions, ReconstructionResult
+
+logger = logging.getLogger(__name__)
+
+
+def _rgb(wire_id: int) -> tuple[float, float, float]:
+    c = wire_colors(np.array([wire_id]))[0] / 255.0
+    return float(c[0]), float(c[1]), float(c[2])
+
+
+def _save(fig: plt.Figure, path: Path) -> Path:
+    def write(tmp: Path) -> None:
+        fig.savefig(tmp, format="png", dpi=110, bbox_inches="tight")
+
+    write_atomic(path, write)
+    plt.close(fig)
+    return path
+
+
+def _plan(result: ReconstructionResult, units: str, path: Path) -> Path:
+    scene = result.scene
+    fig, ax = plt.subplots(figsize=(9, 8))
+    pts = scene.pts_in_world
+    all_xy = (
+        np.concatenate([w.polyline(1.0)[:, :2] for w in result.wires])
+        if result.wires
+        else pts[:, :2]
+    )
+    lo, hi = all_xy.min(axis=0) - 25, all_xy.max(axis=0) + 25
+    near = np.all((pts[:, :2] >= lo) & (pts[:, :2] <= hi), axis=1)
+    sc = ax.scatter(pts[near, 0], pts[near, 1], c=pts[near, 2], s=2, cmap="terrain", alpha=0.6)
+    fig.colorbar(sc, ax=ax, label=f"sparse point height ({units})", shrink=0.7)
+    for w, m in zip(result.wires, result.measures, strict=True):
+        p = w.polyline(0.5)
+        ax.plot(
+            p[:, 0],
+            p[:, 1],
+            "-",
+            color=_rgb(w.wire_id),
+            lw=2.2,
+            label=f"wire {w.wire_id} ({m.kind})",
+        )
+        ax.annotate(str(w.wire_id), p[0, :2], fontsize=9, fontweight="bold")
+        for f in m.flagged:
+            ax.plot(*f.lowest_clearance_point[:2], "rx", ms=10, mew=2)
+    ax.set_xlim(lo[0], hi[0])
+    ax.set_ylim(lo[1], hi[1])
+    ax.set_aspect("equal")
+    ax.set_xlabel(f"east ({units})")
+    ax.set_ylabel(f"north ({units})")
+    ax.set_title(f"{len(result.wires)} wires over the sparse ground points (plan view)")
+    if result.wires:
+        ax.legend(loc="best", fontsize=8, ncol=2)
+    ax.grid(alpha=0.3)
+    return _save(fig, path)
+
+
+def _profile(
+    result: ReconstructionResult, k: int, units: str, limit: float | None, path: Path
+) -> Path:
+    w, m = result.wires[k], result.measures[k]
+    lo, hi = w.s_range
+    s_plane = np.linspace(lo, hi, 800)
+    poly = w.points(s_plane)
+    s = s_plane - lo
+    ground = result.scene.ground_height(poly[:, :2])
+    fig, ax = plt.subplots(figsize=(10, 4.2))
+    ax.fill_between(s, ground.min() - 2, ground, color="0.8", label="ground (sparse points)")
+    ax.plot(s, ground, color="0.4", lw=1)
+    ax.plot(s, poly[:, 2], color=_rgb(w.wire_id), lw=2.2, label=f"wire {w.wire_id} (catenary)")
+    ax.plot([s[0], s[-1]], [poly[0, 2], poly[-1, 2]], "k--", lw=0.8, label="chord")
+    ax.vlines(
+        m.sag_max_at_m,
+        poly[:, 2].min() - 0.05,
+        poly[0, 2] + (poly[-1, 2] - poly[0, 2]) * m.sag_max_at_m / max(s[-1], 1e-9),
+        color="k",
+        lw=1,
+    )
+    ax.annotate(
+        f"sag {m.sag_max_m:.2f} {units}",
+        (m.sag_max_at_m, poly[:, 2].max()),
+        ha="center",
+        va="bottom",
+        fontsize=9,
+    )
+    kv = int(np.argmin(np.abs(s - m.clearance_vertical_at_m)))
+    ax.annotate(
+        "",
+        (s[kv], ground[kv]),
+        (s[kv], poly[kv, 2]),
+        arrowprops={"arrowstyle": "<->", "color": "tab:blue"},
+    )
+    ax.annotate(
+        f"clearance {m.clearance_vertical_m:.2f} {units}",
+        (s[kv], 0.5 * (ground[kv] + poly[kv, 2])),
+        xytext=(6, 0),
+        textcoords="offset points",
+        color="tab:blue",
+        fontsize=9,
+    )
+    for j, f in enumerate(m.flagged):
+        ax.axvspan(
+            f.s_start_m,
+            f.s_end_m,
+            color="red",
+            alpha=0.25,
+            label=f"closer than {limit:g} {units}" if j == 0 else None,
+        )
+    ax.set_xlabel(f"distance along the wire from its first end ({units})")
+    ax.set_ylabel(f"height ({units})")
+    ax.set_title(
+        f"wire {w.wire_id} ({m.kind}): span {m.span_length_m:.1f} {units}, sag "
+        f"{m.sag_max_m:.2f} {units}, lowest clearance {m.clearance_vertical_m:.2f} {units}"
+    )
+    ax.set_ylim(ground.min() - 1, poly[:, 2].max() + 0.15 * (poly[:, 2].max() - ground.min()))
+    ax.legend(loc="lower right", fontsize=8)
+    ax.grid(alpha=0.3)
+    return _save(fig, path)
+
+
+def _pair_overlay(
+    result: ReconstructionResult, k: int, options: ReconstructionOptions, path: Path
+) -> Path:
+    from .detect import detect_wires
+    from .scene import read_image
+
+    view = result.pairs[k].left
+    image = read_image(view.path)
+    grey = image.mean(axis=2)
+    height = result.corridor.height
+    c = result.corridor.centre_xy
+    az = np.deg2rad(result.corridor.azimuth_deg)
+    d = np.array([np.sin(az), np.cos(az), 0.0])
+    p0 = np.r_[c, height]
+    uv, _, ok = view.project(np.stack([p0 - 5 * d, p0 + 5 * d]))
+    direction = float(np.degrees(np.arctan2(*(uv[1] - uv[0])[::-1])) % 180) if ok.all() else 0.0
+    mask = detect_wires(image, direction, options.detect).mask
+    step = max(1, image.shape[1] // 1600)
+    fig, ax = plt.subplots(figsize=(12, 9))
+    ax.imshow(grey[::step, ::step], cmap="gray", extent=(0, image.shape[1], image.shape[0], 0))
+    ys, xs = np.nonzero(mask)
+    ax.scatter(xs, ys, s=0.3, c="yellow", alpha=0.6, label="detected wire pixels", linewidths=0)
+    for w in result.wires:
+        uv, _, ok = view.project(w.polyline(0.2))
+        ax.plot(uv[ok, 0], uv[ok, 1], "-", color=_rgb(w.wire_id), lw=1.2, label=f"wire {w.wire_id}")
+    ax.set_xlim(0, image.shape[1])
+    ax.set_ylim(image.shape[0], 0)
+    ax.set_xlabel("image column (px)")
+    ax.set_ylabel("image row (px)")
+    p = result.pairs[k]
+    ax.set_title(
+        f"pair {k}: {p.left.name} (with {p.right.name}), crossing {p.crossing_deg:.0f}°, "
+        f"B/H {p.base_height:.2f}"
+    )
+    ax.legend(loc="upper right", fontsize=8, markerscale=20)
+    return _save(fig, path)
+
+
+def _cameras(result: ReconstructionResult, units: str, path: Path) -> Path:
+    centres = result.scene.centers_in_world
+    fig, ax = plt.subplots(figsize=(8, 8))
+    ax.plot(centres[:, 0], centres[:, 1], "o", color="0.5", ms=4, label="camera positions")
+    for k, p in enumerate(result.pairs):
+        a, b = p.left.center_in_world, p.right.center_in_world
+        ax.plot([a[0], b[0]], [a[1], b[1]], "-", lw=2, label=f"pair {k}")
+    cor = result.corridor
+    az = np.deg2rad(cor.azimuth_deg)
+    d, n = np.array([np.sin(az), np.cos(az)]), np.array([np.cos(az), -np.sin(az)])
+    s0, s1 = cor.s_range
+    box = [
+        cor.centre_xy + s * d + c * n
+        for s, c in (
+            (s0, -cor.half_width),
+            (s1, -cor.half_width),
+            (s1, cor.half_width),
+            (s0, cor.half_width),
+            (s0, -cor.half_width),
+        )
+    ]
+    box_a = np.array(box)
+    ax.plot(box_a[:, 0], box_a[:, 1], "k--", lw=1, label=f"wire corridor ({cor.azimuth_deg:.1f}°)")
+    for w in result.wires:
+        line = w.polyline(1.0)
+        ax.plot(line[:, 0], line[:, 1], "-", color=_rgb(w.wire_id), lw=1)
+    ax.set_aspect("equal")
+    ax.set_xlabel(f"east ({units})")
+    ax.set_ylabel(f"north ({units})")
+    ax.set_title("camera positions and the chosen crossing pairs")
+    ax.legend(loc="best", fontsize=8)
+    ax.grid(alpha=0.3)
+    return _save(fig, path)
+
+
+def write_report(
+    result: ReconstructionResult,
+    output_path: Path,
+    options: ReconstructionOptions,
+    metric: bool,
+) -> Path:
+    """Render every figure and ``index.html`` into ``output_path / "report"``."""
+    out = Path(output_path) / "report"
+    out.mkdir(parents=True, exist_ok=True)
+    units = "m" if metric else "units"
+    figures: list[tuple[str, Path]] = [
+        ("Plan view", _plan(result, units, out / "plan.png")),
+        ("Camera positions and pairs", _cameras(result, units, out / "cameras.png")),
+    ]
+    for k in range(len(result.wires)):
+        figures.append(
+            (
+                f"Wire {result.wires[k].wire_id} profile",
+                _profile(result, k, units, options.min_clearance_m, out / f"profile_{k}.png"),
+            )
+        )
+    for k in range(len(result.pairs)):
+        figures.append(
+            (
+                f"Pair {k}: detections and wires",
+                _pair_overlay(result, k, options, out / f"pair_{k}.png"),
+            )
+        )
+    rows = "".join(
+        f"<tr><td>{w.wire_id}</td><td>{m.kind}</td><td>{m.span_length_m:.2f}</td>"
+        f"<td>{m.sag_max_m:.3f}</td><td>{m.sag_midspan_m:.3f}</td>"
+        f"<td>{m.clearance_vertical_m:.2f}</td><td>{m.clearance_3d_m:.2f}</td>"
+        f"<td>{len(m.flagged)}</td><td>{len(w.point_indices)}</td><td>{w.rms_residual:.3f}</td></tr>"
+        for w, m in zip(result.wires, result.measures, strict=True)
+    )
+    limit = (
+        f"<p>Stretches closer than {options.min_clearance_m:g} {units} to the ground are "
+        "flagged in red.</p>"
+        if options.min_clearance_m is not None
+        else ""
+    )
+    imgs = "".join(
+        f'<h2>{html.escape(t)}</h2><a href="{p.name}"><img src="{p.name}" '
+        f'style="max-width:100%"></a>'
+        for t, p in figures
+    )
+    page = (
+        "<!doctype html><html><head><meta charset='utf-8'><title>colmap-powerline report</title>"
+        "<style>body{font-family:sans-serif;max-width:1200px;margin:auto}"
+        "td,th{padding:3px 8px;text-align:right}</style></head><body>"
+        f"<h1>Wires of {html.escape(str(result.scene.image_path))}</h1>"
+        f"<p>{len(result.wires)} wires from {len(result.verified)} verified points, "
+        f"{len(result.pairs)} pairs, {len(result.scene)} images. Units: {units}.</p>{limit}"
+        "<table><tr><th>wire</th><th>kind</th><th>span</th><th>sag max</th><th>sag mid</th>"
+        "<th>clearance vertical</th><th>clearance 3D</th><th>flagged</th><th>points</th>"
+        f"<th>fit RMS</th></tr>{rows}</table>{imgs}</body></html>"
+    )
+    index = write_atomic(out / "index.html", lambda p: p.write_text(page))
+    logger.info("report: %s (%d figures)", index, len(figures))
+    return index
