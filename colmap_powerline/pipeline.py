@@ -276,7 +276,7 @@ def reconstruct(
         if options.report:
             t0 = time.perf_counter()
             result.outputs["report"] = write_report(
-                result, Path(output_path), options, georef is not None
+                result, Path(output_path), options, georef is not None, ground
             )
             timings["report"] = time.perf_counter() - t0
     return result

@@ -25,6 +25,7 @@ from .export import wire_colors, write_atomic  # noqa: E402
 
 if TYPE_CHECKING:
     from .pipeline import ReconstructionOptions, ReconstructionResult
+    from .scene import GroundModel
 
 logger = logging.getLogger(__name__)
 
@@ -82,16 +83,21 @@ def _plan(result: ReconstructionResult, units: str, path: Path) -> Path:
 
 
 def _profile(
-    result: ReconstructionResult, k: int, units: str, limit: float | None, path: Path
+    result: ReconstructionResult,
+    k: int,
+    units: str,
+    limit: float | None,
+    path: Path,
+    ground_model: GroundModel | None = None,
 ) -> Path:
     w, m = result.wires[k], result.measures[k]
     lo, hi = w.s_range
     s_plane = np.linspace(lo, hi, 800)
     poly = w.points(s_plane)
     s = s_plane - lo
-    ground = result.scene.ground_height(poly[:, :2])
+    ground = (ground_model or result.scene.ground).height(poly[:, :2])
     fig, ax = plt.subplots(figsize=(10, 4.2))
-    ax.fill_between(s, ground.min() - 2, ground, color="0.8", label="ground (sparse points)")
+    ax.fill_between(s, ground.min() - 2, ground, color="0.8", label=f"ground ({m.ground_source})")
     ax.plot(s, ground, color="0.4", lw=1)
     ax.plot(s, poly[:, 2], color=_rgb(w.wire_id), lw=2.2, label=f"wire {w.wire_id} (catenary)")
     ax.plot([s[0], s[-1]], [poly[0, 2], poly[-1, 2]], "k--", lw=0.8, label="chord")
@@ -165,10 +171,18 @@ def _pair_overlay(
     fig, ax = plt.subplots(figsize=(12, 9))
     ax.imshow(grey[::step, ::step], cmap="gray", extent=(0, image.shape[1], image.shape[0], 0))
     ys, xs = np.nonzero(mask)
-    ax.scatter(xs, ys, s=0.3, c="yellow", alpha=0.6, label="detected wire pixels", linewidths=0)
+    ax.scatter(xs, ys, s=0.2, c="gold", alpha=0.35, label="detected wire pixels", linewidths=0)
     for w in result.wires:
         uv, _, ok = view.project(w.polyline(0.2))
-        ax.plot(uv[ok, 0], uv[ok, 1], "-", color=_rgb(w.wire_id), lw=1.2, label=f"wire {w.wire_id}")
+        ax.plot(
+            uv[ok, 0],
+            uv[ok, 1],
+            "-",
+            color=_rgb(w.wire_id),
+            lw=2.5,
+            alpha=0.9,
+            label=f"wire {w.wire_id}",
+        )
     ax.set_xlim(0, image.shape[1])
     ax.set_ylim(image.shape[0], 0)
     ax.set_xlabel("image column (px)")
@@ -222,6 +236,7 @@ def write_report(
     output_path: Path,
     options: ReconstructionOptions,
     metric: bool,
+    ground: GroundModel | None = None,
 ) -> Path:
     """Render every figure and ``index.html`` into ``output_path / "report"``."""
     out = Path(output_path) / "report"
@@ -235,7 +250,9 @@ def write_report(
         figures.append(
             (
                 f"Wire {result.wires[k].wire_id} profile",
-                _profile(result, k, units, options.min_clearance_m, out / f"profile_{k}.png"),
+                _profile(
+                    result, k, units, options.min_clearance_m, out / f"profile_{k}.png", ground
+                ),
             )
         )
     for k in range(len(result.pairs)):
