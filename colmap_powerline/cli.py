@@ -73,7 +73,7 @@ def _cmd_demo(args: argparse.Namespace) -> int:
         span_dir / "images",
         span_dir / "sparse" / "0",
         out / "result",
-        ReconstructionOptions(show_progress=not args.quiet),
+        ReconstructionOptions(show_progress=not args.quiet, report=True, las=True),
     )
     t_run = time.perf_counter() - t0
     truth = load_true_wires(span_dir / "truth" / "wires.json")
@@ -91,6 +91,13 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     print(ev.summary_table())
     targets = ev.meets_targets()
     print("\ntargets: " + ", ".join(f"{k} {'ok' if v else 'MISSED'}" for k, v in targets.items()))
+    print("\nsag and clearance (wires.csv):")
+    for w, m in zip(result.wires, result.measures, strict=True):
+        print(
+            f"  wire {w.wire_id} ({m.kind}): span {m.span_length_m:.1f} m, sag {m.sag_max_m:.2f} m,"
+            f" clearance {m.clearance_vertical_m:.2f} m"
+        )
+    print(f"report: {result.outputs.get('report')}")
     return 0
 
 

@@ -157,3 +157,21 @@ def test_enu_to_utm_and_back():
         enu_to_crs(xyz, origin, "EPSG:4326")
     with pytest.raises(InputError, match="not a CRS"):
         enu_to_crs(xyz, origin, "EPSG:999999")
+
+
+def test_las_crs_for_georeferenced_models():
+    from colmap_powerline.georef import Georeference, crs_wkt
+
+    g = Georeference("exif_gps", (41.036, -83.304, 0.0), 1.0, (0, 0, 0, 1), (0, 0, 0))
+    assert "UTM zone 17N" in crs_wkt(g, "utm")
+    local = pyproj.CRS.from_wkt(crs_wkt(g, None))
+    assert local.is_projected and "Transverse Mercator" in local.to_wkt().replace("_", " ")
+    # The local transverse Mercator matches the ENU frame (east/north) to < 1 mm at 500 m.
+    xyz = np.array([[500.0, 300.0, 10.0], [-400.0, 200.0, 0.0]])
+    lla = enu_to_wgs84(xyz, g.origin_wgs84)
+    e, n = pyproj.Transformer.from_crs("EPSG:4326", local, always_xy=True).transform(
+        lla[:, 1], lla[:, 0]
+    )
+    assert np.abs(np.c_[e, n] - xyz[:, :2]).max() < 1e-3
+    assert crs_wkt(None, "utm") is None
+    assert crs_wkt(Georeference("scale", None, 2.0, (0, 0, 0, 1), (0, 0, 0)), None) is None
