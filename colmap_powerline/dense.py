@@ -207,19 +207,16 @@ def _ground_grid(ply: PlyVertices, cell: float, chunk: int) -> tuple[F64, float,
         xyz = _xyz(c)
         ij = np.floor((xyz[:, :2] - lo) / cell).astype(np.int64)
         key = ij[:, 0] * width + ij[:, 1]
-        order = np.argsort(key, kind="stable")
+        order = np.lexsort((xyz[:, 2], key))  # by cell, then by height
         k_sorted = key[order]
         starts = np.flatnonzero(np.r_[True, k_sorted[1:] != k_sorted[:-1]])
-        z_sorted = xyz[order, 2]
-        # per chunk: the 5th percentile of each cell, then the minimum over chunks
-        for s, e in zip(starts, np.r_[starts[1:], len(order)], strict=True):
-            k = int(k_sorted[s])
-            q = (
-                float(np.quantile(z_sorted[s:e], 0.05))
-                if e - s > 20
-                else float(z_sorted[s:e].min())
-            )
-            mins[k] = min(mins.get(k, np.inf), q)
+        counts = np.diff(np.r_[starts, len(order)])
+        # The 5th percentile of each cell (its lowest point when the cell is sparse): stray
+        # points below the ground do not make the surface.
+        q = xyz[order[starts + (0.05 * (counts - 1)).astype(np.int64)], 2]
+        for k, z in zip(k_sorted[starts].tolist(), q.tolist(), strict=True):
+            if z < mins.get(k, np.inf):
+                mins[k] = z
     keys = np.fromiter(mins.keys(), np.int64, len(mins))
     z = np.fromiter(mins.values(), np.float64, len(mins))
     xy = lo + (np.c_[keys // width, keys % width] + 0.5) * cell

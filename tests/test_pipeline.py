@@ -52,7 +52,7 @@ def test_end_to_end_accuracy_and_completeness(run, medium_span):
     assert len(result.decoded) <= 3 * len(result.scene)
 
 
-def test_outputs_follow_the_contract(run):
+def test_outputs_follow_the_contract(run, medium_span):
     result, out = run
     doc = json.loads((out / "wires.json").read_text())
     assert doc["input_model"].endswith("0") and len(doc["pairs"]) == len(result.pairs)
@@ -79,6 +79,10 @@ def test_outputs_follow_the_contract(run):
     ids = np.asarray(las.wire_id)
     for wid, kind in kinds.items():
         assert set(cls[ids == wid]) == {14 if kind == "conductor" else 13}
+    xyz = np.c_[las.x, las.y, las.z]
+    truth = load_true_wires(medium_span.truth_wires)
+    d = np.min([distance_to_polyline(xyz, t.polyline(0.05)) for t in truth], axis=0)
+    assert np.mean(d < 0.3) > 0.95  # the LAS coordinates are the wires' (mm scale)
     # The dense cloud filled with the wires, classified.
     merged = laspy.read(out / "merged.las")
     mcls = np.asarray(merged.classification)
