@@ -53,9 +53,20 @@ class PlyVertices:
     def chunks(self, size: int = 1_000_000) -> Iterator[np.ndarray]:
         """Structured arrays of at most ``size`` vertices, in file order."""
         if self.binary:
-            data = np.memmap(self.path, self.dtype, mode="r", offset=self.offset, shape=self.count)
             for k in range(0, self.count, size):
-                yield np.array(data[k : k + size])
+                # One short-lived map per chunk: mapped file pages would otherwise stay
+                # resident and grow the RSS with the file.
+                n = min(size, self.count - k)
+                data = np.memmap(
+                    self.path,
+                    self.dtype,
+                    mode="r",
+                    offset=self.offset + k * self.dtype.itemsize,
+                    shape=n,
+                )
+                chunk = np.array(data)
+                del data
+                yield chunk
             return
         with self.path.open("rb") as f:
             f.seek(self.offset)
