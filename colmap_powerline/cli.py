@@ -261,7 +261,7 @@ def _cmd_reconstruct(args: argparse.Namespace) -> int:
     result = reconstruct(
         args.image_path, args.input_path, args.output_path, _reconstruction_options(args)
     )
-    units = "m" if "sfm_mapping" in result.timings_s or _is_metric(result) else " units"
+    units = "m" if result.georeference is not None else " units"
     print(
         f"{len(result.wires)} wires from {len(result.verified)} verified points "
         f"({len(result.pairs)} pairs) → {args.output_path}"
@@ -282,12 +282,6 @@ def _cmd_reconstruct(args: argparse.Namespace) -> int:
             f"{args.min_clearance_m:g}{units} to the ground"
         )
     return 0
-
-
-def _is_metric(result: Any) -> bool:
-    from .georef import read_georeference
-
-    return read_georeference(result.scene.model_path) is not None
 
 
 @dataclasses.dataclass(kw_only=True)

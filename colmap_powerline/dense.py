@@ -26,7 +26,7 @@ import numpy.typing as npt
 from scipy.spatial import cKDTree
 
 from .errors import InputError
-from .export import read_point_cloud, write_atomic
+from .export import ply_header, read_point_cloud, write_atomic
 from .las import CONDUCTOR, GROUND, UNCLASSIFIED, WIRE_CLASS, write_las
 from .scene import GroundModel
 
@@ -38,6 +38,13 @@ _PLY_TYPES = {
     "ushort": "u2", "uint16": "u2", "int": "i4", "int32": "i4", "uint": "u4", "uint32": "u4",
     "float": "f4", "float32": "f4", "double": "f8", "float64": "f8",
 }  # fmt: skip
+
+
+# The vertex layout of COLMAP's fused.ply (stereo_fusion): float xyz and normals, uchar RGB.
+FUSED_PLY_DTYPE = np.dtype(
+    [("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("nx", "<f4"), ("ny", "<f4"), ("nz", "<f4"),
+     ("red", "u1"), ("green", "u1"), ("blue", "u1")]
+)  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -170,13 +177,7 @@ def load_wires(wires_path: Path | str) -> WireSet:
     except (ValueError, KeyError, TypeError) as e:
         raise InputError(f"{wires_path}: not a colmap-powerline wires.json ({e})") from None
     cls_of = {int(w["id"]): WIRE_CLASS.get(w.get("kind", "conductor"), CONDUCTOR) for w in wires}
-    ids = (
-        np.concatenate(
-            [np.full(len(p), w["id"], np.int32) for p, w in zip(polys, wires, strict=True)]
-        )
-        if wires
-        else np.zeros(0, np.int32)
-    )
+    ids = np.repeat(np.array([w["id"] for w in wires], np.int32), [len(p) for p in polys])
     measured = np.zeros((0, 3))
     measured_id = np.zeros(0, np.int32)
     ply = wires_path.parent / "wire_points.ply"
@@ -188,7 +189,7 @@ def load_wires(wires_path: Path | str) -> WireSet:
     return WireSet(
         fitted=np.concatenate(polys) if polys else np.zeros((0, 3)),
         fitted_id=ids,
-        fitted_class=np.array([cls_of[i] for i in ids], np.uint8),
+        fitted_class=np.array([cls_of[int(i)] for i in ids], np.uint8),
         measured=measured,
         measured_id=measured_id,
         measured_class=np.array([cls_of.get(int(i), CONDUCTOR) for i in measured_id], np.uint8),
@@ -206,38 +207,28 @@ class FillResult:
     num_wire_points: int
 
 
-def _ground_grid(ply: PlyVertices, cell: float, chunk: int) -> tuple[F64, float, F64]:
-    """Lowest-quantile height per plan cell (a ground surface), built in one streamed pass."""
-    lo = np.full(2, np.inf)
+def dense_ground(ply: PlyVertices, cell: float = 1.0, chunk: int = 1_000_000) -> GroundModel:
+    """A ground surface from a dense cloud, in one streamed pass: the 5th percentile of each
+    ``cell`` (its lowest point when the cell is sparse), so stray points below the ground
+    do not make the surface."""
+    lowest: dict[int, float] = {}
+    bias = 1 << 30  # cell indices as non-negative 31-bit halves of one int64 key
     for c in ply.chunks(chunk):
         xyz = _xyz(c)
-        lo = np.minimum(lo, xyz[:, :2].min(axis=0))
-    mins: dict[int, float] = {}
-    width = 1 << 20
-    for c in ply.chunks(chunk):
-        xyz = _xyz(c)
-        ij = np.floor((xyz[:, :2] - lo) / cell).astype(np.int64)
-        key = ij[:, 0] * width + ij[:, 1]
+        ij = np.floor(xyz[:, :2] / cell).astype(np.int64) + bias
+        key = (ij[:, 0] << 31) | ij[:, 1]
         order = np.lexsort((xyz[:, 2], key))  # by cell, then by height
         k_sorted = key[order]
         starts = np.flatnonzero(np.r_[True, k_sorted[1:] != k_sorted[:-1]])
         counts = np.diff(np.r_[starts, len(order)])
-        # The 5th percentile of each cell (its lowest point when the cell is sparse): stray
-        # points below the ground do not make the surface.
         q = xyz[order[starts + (0.05 * (counts - 1)).astype(np.int64)], 2]
         for k, z in zip(k_sorted[starts].tolist(), q.tolist(), strict=True):
-            if z < mins.get(k, np.inf):
-                mins[k] = z
-    keys = np.fromiter(mins.keys(), np.int64, len(mins))
-    z = np.fromiter(mins.values(), np.float64, len(mins))
-    xy = lo + (np.c_[keys // width, keys % width] + 0.5) * cell
-    return np.c_[xy, z], cell, lo
-
-
-def dense_ground(ply: PlyVertices, cell: float = 1.0, chunk: int = 1_000_000) -> GroundModel:
-    """A ground surface from a dense cloud (lowest points per ``cell``), streamed."""
-    pts, cell, _ = _ground_grid(ply, cell, chunk)
-    return GroundModel(pts[:, :2], pts[:, 2], cell)
+            if z < lowest.get(k, np.inf):
+                lowest[k] = z
+    keys = np.fromiter(lowest.keys(), np.int64, len(lowest))
+    z = np.fromiter(lowest.values(), np.float64, len(lowest))
+    ij = np.c_[keys >> 31, keys & ((1 << 31) - 1)] - bias
+    return GroundModel((ij + 0.5) * cell, z, cell)
 
 
 def fill(
@@ -254,9 +245,11 @@ def fill(
     las: bool = False,
     crs_wkt: str | None = None,
     chunk: int = 1_000_000,
+    ground: GroundModel | None = None,
 ) -> FillResult:
     """Merge the wires into a dense cloud; write ``output_path`` (PLY) and, with ``las``,
-    the same points as LAS beside it (``.las``)."""
+    the same points as LAS beside it (``.las``). ``ground``: the cloud's
+    :func:`dense_ground` when the caller has it already (it is one pass over the cloud)."""
     ply = open_ply(dense_path)
     wires = load_wires(wires_path)
     output_path = Path(output_path)
@@ -271,46 +264,48 @@ def fill(
     wire_cls = np.concatenate(
         [wires.fitted_class, wires.measured_class if include_measured else np.zeros(0, np.uint8)]
     )
-    ground_pts, _, lo = _ground_grid(ply, ground_cell_m, chunk)
-    ground_tree = cKDTree(ground_pts[:, :2])
+    if ground is None:
+        ground = dense_ground(ply, ground_cell_m, chunk)
+    ground_tree = cKDTree(ground.cells_xy)
     wire_tree = cKDTree(wires.fitted) if len(wires.fitted) else None
     wire_tree_xy = cKDTree(wires.fitted[:, :2]) if len(wires.fitted) else None
 
-    def classify(c: np.ndarray) -> tuple[npt.NDArray[np.bool_], npt.NDArray[np.uint8]]:
-        xyz = _xyz(c)
+    def classify(xyz: F64) -> tuple[npt.NDArray[np.bool_], npt.NDArray[np.uint8]]:
         _, gi = ground_tree.query(xyz[:, :2])
-        cls = np.where(
-            np.abs(xyz[:, 2] - ground_pts[gi, 2]) <= ground_tolerance_m, GROUND, UNCLASSIFIED
-        ).astype(np.uint8)
+        near_ground = np.abs(xyz[:, 2] - ground.cells_z[gi]) <= ground_tolerance_m
+        cls = np.where(near_ground, GROUND, UNCLASSIFIED).astype(np.uint8)
         keep = np.ones(len(xyz), bool)
         if drop_stray and wire_tree is not None and wire_tree_xy is not None:
             d_xy, wi = wire_tree_xy.query(xyz[:, :2], distance_upper_bound=halo_m)
             near = np.isfinite(d_xy)
-            dz = np.full(len(xyz), np.inf)
-            dz[near] = np.abs(xyz[near, 2] - wires.fitted[wi[near], 2])
-            in_halo = near & (dz <= halo_m)
+            in_halo = np.zeros(len(xyz), bool)
+            in_halo[near] = np.abs(xyz[near, 2] - wires.fitted[wi[near], 2]) <= halo_m
             if in_halo.any():
                 d3, _ = wire_tree.query(xyz[in_halo])
-                stray = np.zeros(len(xyz), bool)
-                stray[np.flatnonzero(in_halo)[d3 > wire_tolerance_m]] = True
-                keep &= ~stray
+                keep[np.flatnonzero(in_halo)[d3 > wire_tolerance_m]] = False
         return keep, cls
 
-    keeps, n_ground = [], 0
+    # One classifying pass keeps a byte of class and a keep flag per point (and the
+    # cloud's minimum corner for the LAS offset); the writing passes only read.
+    keeps, classes = [], []
+    lo = wire_pts.min(axis=0) if len(wire_pts) else np.full(3, np.inf)
     for c in ply.chunks(chunk):
-        keep, cls = classify(c)
+        xyz = _xyz(c)
+        keep, cls = classify(xyz)
         keeps.append(keep)
-        n_ground += int(((cls == GROUND) & keep).sum())
+        classes.append(cls)
+        if len(xyz):
+            lo = np.minimum(lo, xyz.min(axis=0))
     keep_all = np.concatenate(keeps) if keeps else np.zeros(0, bool)
+    cls_all = np.concatenate(classes) if classes else np.zeros(0, np.uint8)
     n_keep = int(keep_all.sum())
-    n_out = n_keep + len(wire_pts)
+    n_ground = int(((cls_all == GROUND) & keep_all).sum())
 
     def chunks_out() -> Iterator[tuple[F64, npt.NDArray, npt.NDArray, npt.NDArray[np.uint8]]]:
         k = 0
         for c in ply.chunks(chunk):
-            keep = keep_all[k : k + len(c)]
+            keep, cls = keep_all[k : k + len(c)], cls_all[k : k + len(c)]
             k += len(c)
-            _, cls = classify(c)
             rgb = _rgb(c)
             if rgb is None:
                 rgb = np.full((len(c), 3), 160, np.uint8)
@@ -319,41 +314,17 @@ def fill(
         yield wire_pts, wire_cls, wire_id, colors.astype(np.uint8)
 
     out_dtype = np.dtype(
-        [
-            ("x", "<f8"),
-            ("y", "<f8"),
-            ("z", "<f8"),
-            ("red", "u1"),
-            ("green", "u1"),
-            ("blue", "u1"),
-            ("class", "u1"),
-            ("wire_id", "<i4"),
-        ]
+        [("x", "<f8"), ("y", "<f8"), ("z", "<f8"), ("red", "u1"), ("green", "u1"),
+         ("blue", "u1"), ("class", "u1"), ("wire_id", "<i4")]
+    )  # fmt: skip
+    comment = (
+        f"colmap-powerline fill: {ply.path.name} + {Path(wires_path).name} "
+        f"(coordinates: {wires.crs})"
     )
 
     def write_ply(tmp: Path) -> None:
-        header = (
-            "ply\nformat binary_little_endian 1.0\n"
-            f"comment colmap-powerline fill: {ply.path.name} + {Path(wires_path).name} "
-            f"(coordinates: {wires.crs})\n"
-            f"element vertex {n_out}\n"
-            + "".join(
-                f"property {t} {n}\n"
-                for n, t in (
-                    ("x", "double"),
-                    ("y", "double"),
-                    ("z", "double"),
-                    ("red", "uchar"),
-                    ("green", "uchar"),
-                    ("blue", "uchar"),
-                    ("class", "uchar"),
-                    ("wire_id", "int"),
-                )
-            )
-            + "end_header\n"
-        )
         with tmp.open("wb") as f:
-            f.write(header.encode("ascii"))
+            f.write(ply_header(out_dtype, n_keep + len(wire_pts), [comment]))
             for xyz, cls, wid, rgb in chunks_out():
                 rec = np.zeros(len(xyz), out_dtype)
                 rec["x"], rec["y"], rec["z"] = xyz[:, 0], xyz[:, 1], xyz[:, 2]
@@ -364,10 +335,7 @@ def fill(
     write_atomic(output_path, write_ply)
     las_path = None
     if las:
-        offset = lo_offset(ply, chunk)
-        if len(wire_pts):
-            offset = np.minimum(offset, wire_pts.min(axis=0))
-        las_path = write_las(output_path.with_suffix(".las"), chunks_out(), offset, crs_wkt)
+        las_path = write_las(output_path.with_suffix(".las"), chunks_out(), lo, crs_wkt)
     result = FillResult(
         output_path, las_path, ply.count, ply.count - n_keep, n_ground, len(wire_pts)
     )
@@ -381,11 +349,3 @@ def fill(
         f" and {las_path}" if las_path else "",
     )
     return result
-
-
-def lo_offset(ply: PlyVertices, chunk: int) -> F64:
-    """The cloud's minimum corner (LAS offset)."""
-    lo = np.full(3, np.inf)
-    for c in ply.chunks(chunk):
-        lo = np.minimum(lo, _xyz(c).min(axis=0))
-    return lo

@@ -52,6 +52,19 @@ _PALETTE = np.array(
 )
 
 
+_PLY_NAMES = {"i1": "char", "u1": "uchar", "i2": "short", "u2": "ushort", "i4": "int",
+              "u4": "uint", "f4": "float", "f8": "double"}  # fmt: skip
+
+
+def ply_header(dtype: np.dtype, count: int, comments: Sequence[str] = ()) -> bytes:
+    """The header of a binary little-endian PLY whose vertices are ``dtype`` records."""
+    lines = ["ply", "format binary_little_endian 1.0", *(f"comment {c}" for c in comments)]
+    lines.append(f"element vertex {count}")
+    for name in dtype.names or ():
+        lines.append(f"property {_PLY_NAMES[dtype[name].str[1:]]} {name}")
+    return ("\n".join(lines) + "\nend_header\n").encode("ascii")
+
+
 def wire_colors(ids: npt.ArrayLike) -> npt.NDArray[np.uint8]:
     """(N,) wire ids → (N, 3) uint8 colours: a fixed palette per id, grey for -1."""
     ids = np.asarray(ids, np.int64)
@@ -96,11 +109,10 @@ def write_point_cloud(
 
     def write(tmp: Path) -> None:
         if len(pts) == 0:  # open3d refuses to write an empty cloud; a reader expects a file
-            props = ["double x", "double y", "double z"]
-            props += ["double red", "double green", "double blue"] if colors is not None else []
-            props += ["int wire_id"] if labels is not None else []
-            header = ["ply", "format binary_little_endian 1.0", "element vertex 0"]
-            tmp.write_text("\n".join(header + [f"property {p}" for p in props]) + "\nend_header\n")
+            fields = [("x", "<f8"), ("y", "<f8"), ("z", "<f8")]
+            fields += [(c, "<f8") for c in ("red", "green", "blue")] if colors is not None else []
+            fields += [("wire_id", "<i4")] if labels is not None else []
+            tmp.write_bytes(ply_header(np.dtype(fields), 0))
             return
         if not o3d.t.io.write_point_cloud(str(tmp), pcd, write_ascii=False):
             raise OSError(f"{path}: open3d could not write the point cloud")

@@ -19,6 +19,7 @@ from __future__ import annotations
 import json
 import logging
 import math
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -142,14 +143,11 @@ def utm_epsg(lat: float, lon: float) -> int:
     return (32600 if lat >= 0 else 32700) + zone
 
 
-def enu_to_crs(xyz: F64, origin: tuple[float, float, float], crs: str) -> tuple[F64, str]:
-    """Local ENU metres → a projected CRS (``"utm"`` picks the zone), and the CRS's name.
-
-    Heights stay heights in the GPS's vertical datum (no geoid is applied).
-    """
+def _projected_crs(crs: str, origin: tuple[float, float, float]) -> Any:
+    """The pyproj CRS named by ``crs`` (``"utm"``: the zone of ``origin``), checked to be
+    projected."""
     import pyproj
 
-    lla = enu_to_wgs84(xyz, origin)
     if crs.lower() == "utm":
         crs = f"EPSG:{utm_epsg(origin[0], origin[1])}"
     try:
@@ -158,9 +156,31 @@ def enu_to_crs(xyz: F64, origin: tuple[float, float, float], crs: str) -> tuple[
         raise InputError(f"output CRS {crs!r}: not a CRS pyproj knows ({e})") from None
     if not target.is_projected:
         raise InputError(f"output CRS {crs!r}: not a projected CRS (metres east/north needed)")
+    return target
+
+
+def crs_converter(origin: tuple[float, float, float], crs: str) -> tuple[Callable[[F64], F64], str]:
+    """(local ENU metres → ``crs`` function, the CRS's name); the transformer is built once.
+
+    Heights stay heights in the GPS's vertical datum (no geoid is applied).
+    """
+    import pyproj
+
+    target = _projected_crs(crs, origin)
     tf = pyproj.Transformer.from_crs("EPSG:4326", target, always_xy=True)
-    east, north = tf.transform(lla[:, 1], lla[:, 0])
-    return np.c_[east, north, lla[:, 2]], f"{target.name} ({crs})"
+
+    def convert(xyz: F64) -> F64:
+        lla = enu_to_wgs84(xyz, origin)
+        east, north = tf.transform(lla[:, 1], lla[:, 0])
+        return np.c_[east, north, lla[:, 2]]
+
+    return convert, f"{target.name} ({target.to_string()})"
+
+
+def enu_to_crs(xyz: F64, origin: tuple[float, float, float], crs: str) -> tuple[F64, str]:
+    """Local ENU metres → a projected CRS (``"utm"`` picks the zone), and the CRS's name."""
+    convert, name = crs_converter(origin, crs)
+    return convert(xyz), name
 
 
 def read_ref_images(path: Path) -> dict[str, F64]:
@@ -301,8 +321,7 @@ def crs_wkt(georef: Georeference | None, output_crs: str | None) -> str | None:
         return None
     lat, lon, alt = georef.origin_wgs84
     if output_crs:
-        crs = f"EPSG:{utm_epsg(lat, lon)}" if output_crs.lower() == "utm" else output_crs
-        return pyproj.CRS.from_user_input(crs).to_wkt()
+        return _projected_crs(output_crs, georef.origin_wgs84).to_wkt()
     local = (
         f"+proj=tmerc +lat_0={lat} +lon_0={lon} +k=1 +x_0=0 +y_0=0 +ellps=WGS84 +units=m +no_defs"
     )

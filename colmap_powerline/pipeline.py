@@ -24,7 +24,7 @@ from .dense import dense_ground, fill, open_ply
 from .detect import DetectOptions, WireMask, detect_wires
 from .errors import InputError
 from .export import export_results, wire_colors
-from .georef import Georeference, crs_wkt, enu_to_crs, read_georeference
+from .georef import Georeference, crs_converter, crs_wkt, read_georeference
 from .las import CONDUCTOR, WIRE_CLASS, write_las
 from .pairs import ImagePair, PairsOptions, WireCorridor, estimate_corridor, select_pairs
 from .rectify import RectifiedPair, RectifyOptions, rectify_pair
@@ -71,6 +71,7 @@ class ReconstructionResult:
     timings_s: dict[str, float]
     decoded: list[Path]  # every image file decoded, in order (repeats included)
     measures: list[WireMeasures]  # sag and clearance of each wire
+    georeference: Georeference | None  # how the model is in metres (None: it is not)
     outputs: dict[str, Path] = field(default_factory=dict)
 
 
@@ -228,7 +229,17 @@ def reconstruct(
     assign_kinds(measures)
     timings["clearance"] = time.perf_counter() - t0
     result = ReconstructionResult(
-        scene, corridor, pairs, primitives, verified, wires, labels, timings, decoded, measures
+        scene,
+        corridor,
+        pairs,
+        primitives,
+        verified,
+        wires,
+        labels,
+        timings,
+        decoded,
+        measures,
+        georef,
     )
     if options.min_clearance_m is not None:
         flagged = [m for m in measures if m.flagged]
@@ -242,6 +253,7 @@ def reconstruct(
         )
     if output_path is not None:
         t0 = time.perf_counter()
+        crs = _crs_function(georef, options.output_crs)
         result.outputs = export_results(
             Path(output_path),
             wires=wires,
@@ -250,12 +262,11 @@ def reconstruct(
             primitives=np.concatenate([p.pts_in_world for p in primitives])
             if options.debug
             else None,
-            metadata=_metadata(result, image_path, input_path, options, georef),
+            metadata=_metadata(result, image_path, input_path, options),
             ground_height=scene.ground_height,
-            to_crs=_crs_function(georef, options.output_crs),
+            to_crs=crs,
             measures=measures,
         )
-        crs = _crs_function(georef, options.output_crs)
         wkt = crs_wkt(georef, options.output_crs)
         if options.las:
             result.outputs["wires.las"] = _write_wires_las(
@@ -268,6 +279,7 @@ def reconstruct(
                 Path(output_path) / "merged.ply",
                 las=options.las,
                 crs_wkt=wkt,
+                ground=ground,
             )
             result.outputs["merged.ply"] = merged.output_path
             if merged.las_path:
@@ -312,9 +324,7 @@ def _crs_function(
     """(model frame → ``crs`` function, CRS name), or None to keep the model frame."""
     if not crs or georef is None or georef.origin_wgs84 is None:
         return None
-    origin = georef.origin_wgs84
-    name = enu_to_crs(np.zeros((1, 3)), origin, crs)[1]  # fails early on an unknown CRS
-    return (lambda xyz: enu_to_crs(xyz, origin, crs)[0]), name
+    return crs_converter(georef.origin_wgs84, crs)
 
 
 def _metadata(
@@ -322,8 +332,9 @@ def _metadata(
     image_path: Path | str,
     input_path: Path | str,
     options: ReconstructionOptions,
-    georef: Georeference | None,
 ) -> dict[str, Any]:
+    georef = result.georeference
+
     def plain(obj: Any) -> Any:
         return json.loads(json.dumps(dataclasses.asdict(obj), default=str))
 

@@ -44,6 +44,15 @@ def _save(fig: plt.Figure, path: Path) -> Path:
     return path
 
 
+def _finish_plan(ax: plt.Axes, units: str, title: str) -> None:
+    """Equal-scale east/north axes with units, a title and a light grid."""
+    ax.set_aspect("equal")
+    ax.set_xlabel(f"east ({units})")
+    ax.set_ylabel(f"north ({units})")
+    ax.set_title(title)
+    ax.grid(alpha=0.3)
+
+
 def _plan(result: ReconstructionResult, units: str, path: Path) -> Path:
     scene = result.scene
     fig, ax = plt.subplots(figsize=(9, 8))
@@ -72,13 +81,9 @@ def _plan(result: ReconstructionResult, units: str, path: Path) -> Path:
             ax.plot(*f.lowest_clearance_point[:2], "rx", ms=10, mew=2)
     ax.set_xlim(lo[0], hi[0])
     ax.set_ylim(lo[1], hi[1])
-    ax.set_aspect("equal")
-    ax.set_xlabel(f"east ({units})")
-    ax.set_ylabel(f"north ({units})")
-    ax.set_title(f"{len(result.wires)} wires over the sparse ground points (plan view)")
+    _finish_plan(ax, units, f"{len(result.wires)} wires over the sparse ground points (plan view)")
     if result.wires:
         ax.legend(loc="best", fontsize=8, ncol=2)
-    ax.grid(alpha=0.3)
     return _save(fig, path)
 
 
@@ -222,12 +227,8 @@ def _cameras(result: ReconstructionResult, units: str, path: Path) -> Path:
     for w in result.wires:
         line = w.polyline(1.0)
         ax.plot(line[:, 0], line[:, 1], "-", color=_rgb(w.wire_id), lw=1)
-    ax.set_aspect("equal")
-    ax.set_xlabel(f"east ({units})")
-    ax.set_ylabel(f"north ({units})")
-    ax.set_title("camera positions and the chosen crossing pairs")
+    _finish_plan(ax, units, "camera positions and the chosen crossing pairs")
     ax.legend(loc="best", fontsize=8)
-    ax.grid(alpha=0.3)
     return _save(fig, path)
 
 

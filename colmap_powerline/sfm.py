@@ -239,7 +239,6 @@ def _map(
     mapping.random_seed = opts.random_seed
     mapping.multiple_models = True
     mapping.ba_refine_principal_point = opts.refine_principal_point
-    n_images = 0
     with pycolmap.Database.open(database_path) as db:
         n_images = db.num_images()
     bar = tqdm(total=n_images, desc="mapping", unit="image", disable=not opts.show_progress)

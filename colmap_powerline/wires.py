@@ -12,6 +12,7 @@ every point is given to the nearest wire within a tolerance and the wires are re
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -335,20 +336,7 @@ def split_wires(
                 wires.append(fit)
     # Deterministic numbering: across the line, then by height.
     wires.sort(key=lambda w: (round(float(w.plane_origin_xy @ normal), 1), w.z0))
-    out = [
-        FittedWire(
-            wire_id=i,
-            plane_origin_xy=w.plane_origin_xy,
-            plane_direction_xy=w.plane_direction_xy,
-            catenary_a=w.catenary_a,
-            s0=w.s0,
-            z0=w.z0,
-            s_range=w.s_range,
-            point_indices=w.point_indices,
-            rms_residual=w.rms_residual,
-        )
-        for i, w in enumerate(wires)
-    ]
+    out = [dataclasses.replace(w, wire_id=i) for i, w in enumerate(wires)]
     logger.info(
         "wires: %d wires from %d points (%d candidates, %d after merging); %d points assigned",
         len(out),

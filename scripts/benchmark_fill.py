@@ -22,19 +22,12 @@ import numpy as np
 
 
 def _write_cloud(path: Path, n: int) -> None:
+    from colmap_powerline.dense import FUSED_PLY_DTYPE as dtype
+    from colmap_powerline.export import ply_header
+
     rng = np.random.default_rng(0)
-    dtype = np.dtype(
-        [("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("nx", "<f4"), ("ny", "<f4"),
-         ("nz", "<f4"), ("red", "u1"), ("green", "u1"), ("blue", "u1")]
-    )  # fmt: skip
-    header = (
-        "ply\nformat binary_little_endian 1.0\n"
-        f"element vertex {n}\n"
-        + "".join(f"property float {a}\n" for a in ("x", "y", "z", "nx", "ny", "nz"))
-        + "property uchar red\nproperty uchar green\nproperty uchar blue\nend_header\n"
-    )
     with path.open("wb") as f:
-        f.write(header.encode())
+        f.write(ply_header(dtype, n))
         for k in range(0, n, 1_000_000):
             m = min(1_000_000, n - k)
             pts = np.zeros(m, dtype)

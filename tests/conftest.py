@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 from colmap_powerline import load_scene
@@ -39,25 +40,16 @@ def medium_span(tmp_path_factory):
 def write_fused_ply(path, xyz, rgb=None):
     """A dense cloud exactly as COLMAP's stereo_fusion writes fused.ply: binary little
     endian, float x y z nx ny nz, uchar red green blue."""
-    import numpy as np
+    from colmap_powerline.dense import FUSED_PLY_DTYPE
+    from colmap_powerline.export import ply_header
 
-    dtype = np.dtype(
-        [("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("nx", "<f4"), ("ny", "<f4"),
-         ("nz", "<f4"), ("red", "u1"), ("green", "u1"), ("blue", "u1")]
-    )  # fmt: skip
-    pts = np.zeros(len(xyz), dtype)
+    pts = np.zeros(len(xyz), FUSED_PLY_DTYPE)
     pts["x"], pts["y"], pts["z"] = xyz[:, 0], xyz[:, 1], xyz[:, 2]
     pts["nz"] = 1.0
     if rgb is not None:
         pts["red"], pts["green"], pts["blue"] = rgb[:, 0], rgb[:, 1], rgb[:, 2]
-    header = (
-        "ply\nformat binary_little_endian 1.0\n"
-        f"element vertex {len(xyz)}\n"
-        + "".join(f"property float {a}\n" for a in ("x", "y", "z", "nx", "ny", "nz"))
-        + "property uchar red\nproperty uchar green\nproperty uchar blue\nend_header\n"
-    )
     with open(path, "wb") as f:
-        f.write(header.encode())
+        f.write(ply_header(FUSED_PLY_DTYPE, len(pts)))
         f.write(pts.tobytes())
     return path
 
@@ -66,8 +58,6 @@ def write_fused_ply(path, xyz, rgb=None):
 def medium_dense(medium_span, tmp_path_factory):
     """A dense cloud of the medium span's true terrain (0.25 m grid, 2 cm noise, no wires),
     as dense matching would give it: the ground for clearance and the cloud to fill."""
-    import numpy as np
-
     from colmap_powerline.synthetic import Terrain
 
     terrain = Terrain.load(medium_span.terrain)

@@ -8,6 +8,7 @@ import laspy
 import numpy as np
 import open3d as o3d
 import pytest
+from conftest import write_fused_ply
 
 from colmap_powerline import InputError
 from colmap_powerline.clearance import assign_kinds, measure_wire, measures_csv
@@ -90,41 +91,27 @@ def test_shield_wires_are_the_ones_clearly_above():
     assert {m.kind for m in measures} == {"conductor"}
 
 
-def _fused_ply(path, n: int, seed: int = 0) -> np.ndarray:
+def _fused_ply(path, n: int, seed: int = 0) -> None:
     """A dense cloud exactly as COLMAP's stereo_fusion writes fused.ply: binary, float
     xyz and normals, uchar colours. Ground over 140 x 60 m, a halo of stray points around
     the wire at y = 0, and a bush (2 m high) under it."""
     rng = np.random.default_rng(seed)
-    dtype = np.dtype(
-        [("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("nx", "<f4"), ("ny", "<f4"),
-         ("nz", "<f4"), ("red", "u1"), ("green", "u1"), ("blue", "u1")]
-    )  # fmt: skip
-    pts = np.zeros(n, dtype)
     n_halo, n_bush = 2000, 3000
     n_ground = n - n_halo - n_bush
-    pts["x"][:n_ground] = rng.uniform(-20, 120, n_ground)
-    pts["y"][:n_ground] = rng.uniform(-30, 30, n_ground)
-    pts["z"][:n_ground] = rng.normal(0.0, 0.02, n_ground)
+    ground = np.c_[
+        rng.uniform(-20, 120, n_ground),
+        rng.uniform(-30, 30, n_ground),
+        rng.normal(0, 0.02, n_ground),
+    ]
     s = rng.uniform(5, 95, n_halo)
-    pts["x"][n_ground : n_ground + n_halo] = s
-    pts["y"][n_ground : n_ground + n_halo] = rng.uniform(-0.8, 0.8, n_halo)
     wire_z = 12.0 + 600.0 * (np.cosh((s - 50.0) / 600.0) - 1.0)
-    pts["z"][n_ground : n_ground + n_halo] = wire_z + rng.choice([-0.6, 0.6], n_halo)
-    pts["x"][n - n_bush :] = rng.uniform(40, 44, n_bush)
-    pts["y"][n - n_bush :] = rng.uniform(-2, 2, n_bush)
-    pts["z"][n - n_bush :] = rng.uniform(0.5, 2.0, n_bush)
-    pts["nz"] = 1.0
-    pts["green"] = 120
-    header = (
-        "ply\nformat binary_little_endian 1.0\n"
-        f"element vertex {n}\n"
-        + "".join(f"property float {a}\n" for a in ("x", "y", "z", "nx", "ny", "nz"))
-        + "property uchar red\nproperty uchar green\nproperty uchar blue\nend_header\n"
-    )
-    with open(path, "wb") as f:
-        f.write(header.encode())
-        f.write(pts.tobytes())
-    return pts
+    halo = np.c_[s, rng.uniform(-0.8, 0.8, n_halo), wire_z + rng.choice([-0.6, 0.6], n_halo)]
+    bush = np.c_[
+        rng.uniform(40, 44, n_bush), rng.uniform(-2, 2, n_bush), rng.uniform(0.5, 2.0, n_bush)
+    ]
+    rgb = np.zeros((n, 3), np.uint8)
+    rgb[:, 1] = 120
+    write_fused_ply(path, np.concatenate([ground, halo, bush]), rgb)
 
 
 @pytest.fixture(scope="module")
