@@ -22,6 +22,7 @@ import numpy.typing as npt
 from scipy.spatial import cKDTree
 
 from .scene import GroundModel
+from .support import WireSupport
 from .wires import FittedWire
 
 F64 = npt.NDArray[np.float64]
@@ -178,14 +179,26 @@ CSV_COLUMNS = (
     "flagged_length_m",
     "ground_source",
 )
+SUPPORT_COLUMNS = (
+    "views",
+    "strips",
+    "crossing_views",
+    "hit_rate",
+    "confidence",
+    "geometry",
+    "advice",
+)
 
 
-def measures_csv(measures: Sequence[WireMeasures]) -> str:
-    """One row per wire (the columns of :data:`CSV_COLUMNS`), millimetre precision."""
+def measures_csv(
+    measures: Sequence[WireMeasures], supports: Sequence[WireSupport] | None = None
+) -> str:
+    """One row per wire (the columns of :data:`CSV_COLUMNS`, then with ``supports`` those of
+    :data:`SUPPORT_COLUMNS`), millimetre precision."""
     buf = io.StringIO()
     writer = csv.writer(buf, lineterminator="\n")
-    writer.writerow(CSV_COLUMNS)
-    for m in measures:
+    writer.writerow(CSV_COLUMNS + (SUPPORT_COLUMNS if supports is not None else ()))
+    for k, m in enumerate(measures):
         row: list[Any] = [m.wire_id, m.kind]
         row += [
             f"{v:.3f}"
@@ -206,5 +219,10 @@ def measures_csv(measures: Sequence[WireMeasures]) -> str:
         ]
         row += [len(m.flagged), f"{sum(f.s_end_m - f.s_start_m for f in m.flagged):.3f}"]
         row.append(m.ground_source)
+        if supports is not None:
+            sup = supports[k]
+            row += [sup.views, sup.strips, sup.crossing_views, f"{sup.hit_rate:.3f}"]
+            row += ["" if sup.confidence is None else f"{sup.confidence:.4f}", sup.geometry]
+            row.append(sup.advice or "")
         writer.writerow(row)
     return buf.getvalue()

@@ -32,7 +32,19 @@ def _add_synthetic_flags(p: argparse.ArgumentParser, default_scale: float) -> No
         "--background", type=Background, choices=list(Background), default=Background.VEGETATION
     )
     p.add_argument(
-        "--flight", type=FlightPattern, choices=list(FlightPattern), default=FlightPattern.ACROSS
+        "--flight",
+        type=FlightPattern,
+        choices=list(FlightPattern),
+        default=FlightPattern.CORRIDOR,
+        help="corridor: 3 strips along the line, the middle one over it; along4: 4 strips "
+        "along it, the line between the middle two; grid: an area survey whose strips cross "
+        "the line at --grid_angle_deg; across: strips across the line (default %(default)s)",
+    )
+    p.add_argument(
+        "--grid_angle_deg",
+        type=float,
+        default=SyntheticSpanOptions.grid_angle_deg,
+        help="flight grid: angle between the strips and the line (default %(default)s)",
     )
     p.add_argument("--seed", type=int, default=0)
 
@@ -42,6 +54,7 @@ def _synthetic_options(args: argparse.Namespace) -> SyntheticSpanOptions:
         scale=args.scale,
         background=args.background,
         flight=args.flight,
+        grid_angle_deg=args.grid_angle_deg,
         seed=args.seed,
         show_progress=not args.quiet,
     )
@@ -61,7 +74,10 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     from .synthetic import generate_span, load_true_wires
 
     out = Path(args.output_path)
-    span_dir = out / f"span_{args.background}_{args.flight}_s{args.scale:g}_seed{args.seed}"
+    flight = str(args.flight)
+    if args.flight is FlightPattern.GRID:
+        flight += f"{args.grid_angle_deg:g}"
+    span_dir = out / f"span_{args.background}_{flight}_s{args.scale:g}_seed{args.seed}"
     t0 = time.perf_counter()
     if (span_dir / "truth" / "wires.json").exists():
         logger.info("reusing the synthetic span in %s", span_dir)

@@ -24,6 +24,7 @@ import numpy.typing as npt
 import open3d as o3d
 
 from .clearance import WireMeasures, measures_csv
+from .support import WireSupport
 from .wires import FittedWire
 
 logger = logging.getLogger(__name__)
@@ -178,6 +179,7 @@ def export_results(
     sample_step: float = 0.1,
     to_crs: tuple[Callable[[F64], F64], str] | None = None,
     measures: Sequence[WireMeasures] | None = None,
+    supports: Sequence[WireSupport] | None = None,
 ) -> dict[str, Path]:
     """Write the output contract of DESIGN.md into ``output_path``; returns the files.
 
@@ -196,6 +198,9 @@ def export_results(
             d["clearance_m"] = m.clearance_vertical_m
             d["kind"] = m.kind
             d["measures"] = m.to_json()
+    if supports is not None:
+        for d, sup in zip(wire_docs, supports, strict=True):
+            d["support"] = sup.to_json()
     if to_crs is not None:
         for d in wire_docs:
             for key in ("ends", "polyline"):
@@ -210,7 +215,7 @@ def export_results(
     text = json.dumps(_finite(doc), allow_nan=False)
     out["wires.json"] = write_atomic(output_path / "wires.json", lambda p: p.write_text(text))
     if measures is not None:
-        table = measures_csv(measures)
+        table = measures_csv(measures, supports)
         out["wires.csv"] = write_atomic(output_path / "wires.csv", lambda p: p.write_text(table))
     dense = [w.polyline(sample_step) for w in wires]
     ids = (
@@ -223,8 +228,11 @@ def export_results(
     out["wires.ply"] = write_point_cloud(
         output_path / "wires.ply", dense_pts, wire_colors(ids), ids
     )
+    # Only the points of the reported wires: the rest failed the whole-wire check or fit
+    # no wire, and would be noise in a cloud whose voids they fill.
+    on = labels >= 0
     out["wire_points.ply"] = write_point_cloud(
-        output_path / "wire_points.ply", points, wire_colors(labels), labels
+        output_path / "wire_points.ply", points[on], wire_colors(labels[on]), labels[on]
     )
     if primitives is not None:
         out["primitives.ply"] = write_point_cloud(

@@ -31,6 +31,7 @@ from .rectify import RectifiedPair, RectifyOptions, rectify_pair
 from .report import write_report
 from .scene import Scene, SceneImage, load_scene, read_image, resolve_inputs
 from .sfm import SfmOptions, run_sfm
+from .support import SupportOptions, WireSupport, keep_supported, wire_support
 from .triangulate import Primitives, TriangulateOptions, triangulate_pair, wire_centres
 from .verify import VerifiedPoints, VerifyOptions, verify_primitives
 from .wires import FittedWire, WiresOptions, split_wires
@@ -46,6 +47,7 @@ class ReconstructionOptions:
     triangulate: TriangulateOptions = field(default_factory=TriangulateOptions)
     verify: VerifyOptions = field(default_factory=VerifyOptions)
     wires: WiresOptions = field(default_factory=WiresOptions)
+    support: SupportOptions = field(default_factory=SupportOptions)
     sfm: SfmOptions = field(default_factory=SfmOptions)  # used when no model is given
     skip_bad_images: bool = False  # drop missing/undecodable images with a warning
     min_clearance_m: float | None = None  # flag wire stretches closer to the ground
@@ -71,6 +73,7 @@ class ReconstructionResult:
     timings_s: dict[str, float]
     decoded: list[Path]  # every image file decoded, in order (repeats included)
     measures: list[WireMeasures]  # sag and clearance of each wire
+    supports: list[WireSupport]  # how well the views support each wire
     georeference: Georeference | None  # how the model is in metres (None: it is not)
     outputs: dict[str, Path] = field(default_factory=dict)
 
@@ -209,11 +212,29 @@ def reconstruct(
     timings["verify"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    wires = split_wires(verified.pts_in_world, corridor.azimuth_deg, options.wires)
+    candidates = split_wires(verified.pts_in_world, corridor.azimuth_deg, options.wires)
+    timings["wires"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    pair_centres = np.array(
+        [[p.left.center_in_world, p.right.center_in_world] for p in pairs]
+    ).reshape(-1, 2, 3)
+    supports = wire_support(
+        scene,
+        candidates,
+        verified.wire_pixels,
+        verified.pair_index,
+        pair_centres,
+        options.verify.crossing_offset,
+        options.verify.tolerance_px,
+        options.support,
+    )
+    kept, supports = keep_supported(candidates, supports, options.support)
+    wires = [dataclasses.replace(w, wire_id=i) for i, w in enumerate(kept)]
+    supports = [dataclasses.replace(s, wire_id=i) for i, s in enumerate(supports)]
     labels = np.full(len(verified), -1, np.int64)
     for w in wires:
         labels[w.point_indices] = w.wire_id
-    timings["wires"] = time.perf_counter() - t0
+    timings["support"] = time.perf_counter() - t0
     logger.info(
         "wires: %d wires from %d verified points (%d assigned)",
         len(wires),
@@ -239,6 +260,7 @@ def reconstruct(
         timings,
         decoded,
         measures,
+        supports,
         georef,
     )
     if options.min_clearance_m is not None:
@@ -266,6 +288,7 @@ def reconstruct(
             ground_height=scene.ground_height,
             to_crs=crs,
             measures=measures,
+            supports=supports,
         )
         wkt = crs_wkt(georef, options.output_crs)
         if options.las:

@@ -4,7 +4,9 @@ The scene is built in a local east-north-up frame (metres) whose origin is a con
 WGS84 position: terrain with relief and a multi-scale texture (presets: vegetation, bare
 soil, mixed with a road), two lattice towers, six phase conductors and one or two shield
 wires hanging as true catenaries, and their shadows. A DJI-Phantom-4-like camera (12 MP,
-f = 3.6 mm, 1.58 µm pixels, OPENCV lens distortion) flies a photogrammetric grid over it.
+f = 3.6 mm, 1.58 µm pixels, OPENCV lens distortion) flies nadir strips over it as one
+serpentine (:class:`FlightPattern`): a 3- or 4-strip corridor mission along the line, an area
+survey whose strips cross the line at an angle, or strips across the line.
 
 :func:`generate_span` writes ``images/`` (JPEG with EXIF GPS), ``sparse_gt/`` (the true
 COLMAP model), ``sparse/0/`` (the same model as a bundle adjustment would leave it),
@@ -19,6 +21,7 @@ import os
 import shutil
 import tempfile
 import time
+import warnings
 from dataclasses import asdict, dataclass, field
 from enum import StrEnum
 from functools import cached_property
@@ -55,8 +58,33 @@ class Background(StrEnum):
 
 
 class FlightPattern(StrEnum):
-    ALONG = "along"  # strips parallel to the line (pairs across strips cross the wires)
+    """How the drone's strips lie relative to the line (all flown as one serpentine)."""
+
+    CORRIDOR = "corridor"  # 3 strips along the line, the middle one over it
+    ALONG4 = "along4"  # 4 strips along the line, which runs between the two middle ones
+    GRID = "grid"  # an area survey: strips at grid_angle_deg to the line, ±60 m across it
     ACROSS = "across"  # strips perpendicular to the line (consecutive images cross them)
+
+    @classmethod
+    def _missing_(cls, value: object) -> FlightPattern | None:
+        if value == "along":  # the name of "corridor" before along4 and grid existed
+            warnings.warn(
+                "flight pattern 'along' is deprecated: use 'corridor'",
+                DeprecationWarning,
+                stacklevel=2,
+            )
+            return cls.CORRIDOR
+        return None
+
+
+# Side overlap of each flight pattern when SyntheticSpanOptions.side_overlap is None.
+DEFAULT_SIDE_OVERLAP = {
+    FlightPattern.CORRIDOR: 0.65,
+    FlightPattern.ALONG4: 0.68,  # a usual 4-strip corridor mission
+    FlightPattern.GRID: 0.65,
+    FlightPattern.ACROSS: 0.65,
+}
+GRID_HALF_WIDTH_M = 60.0  # the grid survey covers this far across the line on each side
 
 
 @dataclass(kw_only=True)
@@ -69,7 +97,8 @@ class SyntheticSpanOptions:
     line_azimuth_deg: float = 35.0  # direction tower A → B, clockwise from north
     height_above_wires_m: float = 45.0  # flying height above the highest wire
     forward_overlap: float = 0.8
-    side_overlap: float = 0.65
+    side_overlap: float | None = None  # None: the flight's default (DEFAULT_SIDE_OVERLAP)
+    grid_angle_deg: float = 35.0  # flight "grid": angle between the strips and the line
     num_shield_wires: int = 2  # 1 or 2
     position_jitter_m: float = 0.4  # deviation of the drone from its planned position (1σ)
     attitude_jitter_deg: float = 1.5  # roll/pitch/yaw deviation from nadir (1σ)
@@ -92,6 +121,15 @@ class SyntheticSpanOptions:
             raise ValueError(f"{self.num_shield_wires=} but expected 1 or 2")
         self.background = Background(self.background)
         self.flight = FlightPattern(self.flight)
+        if self.side_overlap is not None and not 0.0 <= self.side_overlap < 1.0:
+            raise ValueError(f"{self.side_overlap=} but expected 0 ≤ side_overlap < 1")
+
+    @property
+    def flight_side_overlap(self) -> float:
+        """The side overlap flown: ``side_overlap``, or the flight pattern's default."""
+        if self.side_overlap is not None:
+            return self.side_overlap
+        return DEFAULT_SIDE_OVERLAP[self.flight]
 
 
 @dataclass(frozen=True)
@@ -223,6 +261,7 @@ class SyntheticSpan:
     terrain: Terrain
     sun_in_world: F64  # unit vector towards the sun
     ortho: np.ndarray = field(repr=False)  # (H, W, 4) uint8: radiance RGB + detail amplitude
+    strips: list[int] = field(default_factory=list)  # flight strip of each view (0, 1, …)
     ortho_x0: float = 0.0
     ortho_y0: float = 0.0
     ortho_res_m: float = 0.05
@@ -371,33 +410,57 @@ def _rotation_nadir(heading_xy: F64, rng: np.random.Generator, jitter_deg: float
     return jitter @ rot
 
 
+def _plan_strips(
+    opts: SyntheticSpanOptions, fp_across: float, fp_along: float
+) -> tuple[F64, F64, float, list[float]]:
+    """The flight's strips: direction, offset direction, half length, offsets (plan, m).
+
+    Strip ``k`` runs through ``offsets[k] * offset_dir`` from ``-half_length`` to
+    ``+half_length`` along ``strip_dir``; image x runs across the strip.
+    """
+    along, across = _line_frame(opts)
+    spacing = (1 - opts.flight_side_overlap) * fp_across
+    if opts.flight is FlightPattern.CORRIDOR:
+        return along, across, opts.span_m / 2 + 0.25 * fp_along, [-spacing, 0.0, spacing]
+    if opts.flight is FlightPattern.ALONG4:
+        offsets = [(k - 1.5) * spacing for k in range(4)]
+        return along, across, opts.span_m / 2 + 0.25 * fp_along, offsets
+    if opts.flight is FlightPattern.GRID:
+        # Cover the span plus a margin along the line and ±GRID_HALF_WIDTH_M across it.
+        ga = np.deg2rad(opts.grid_angle_deg)
+        strip_dir = np.cos(ga) * along + np.sin(ga) * across
+        off_dir = -np.sin(ga) * along + np.cos(ga) * across
+        hu, hv = opts.span_m / 2 + 0.25 * fp_along, GRID_HALF_WIDTH_M
+        corners = np.array([[a * hu, c * hv] for a in (-1, 1) for c in (-1, 1)])
+        corners_xy = corners[:, :1] * along + corners[:, 1:] * across
+        half_length = float(np.abs(corners_xy @ strip_dir).max())
+        half_width = float(np.abs(corners_xy @ off_dir).max())
+        n_strips = int(np.ceil(2 * half_width / spacing)) + 1
+        offsets = list((np.arange(n_strips) - (n_strips - 1) / 2) * spacing)
+        return strip_dir, off_dir, half_length, offsets
+    n_strips = int(np.ceil((opts.span_m + 0.2 * fp_across) / spacing)) + 1
+    return across, along, 0.6 * fp_along, list((np.arange(n_strips) - (n_strips - 1) / 2) * spacing)
+
+
 def _plan_flight(
     opts: SyntheticSpanOptions,
     camera: pycolmap.Camera,
     wires: list[TrueWire],
     terrain: Terrain,
     rng: np.random.Generator,
-) -> list[SceneImage]:
-    along, across = _line_frame(opts)
+) -> tuple[list[SceneImage], list[int]]:
+    """The views of the flight and the strip each belongs to."""
     z_cam = max(max(w.attach_a[2], w.attach_b[2]) for w in wires) + opts.height_above_wires_m
     ground_z = float(np.mean(terrain.height(np.zeros((1, 2)))))
     gsd = (z_cam - ground_z) / camera.mean_focal_length()
     fp_across = camera.width * gsd  # image x runs across the strip
     fp_along = camera.height * gsd
     base = (1 - opts.forward_overlap) * fp_along
-    spacing = (1 - opts.side_overlap) * fp_across
-    if opts.flight is FlightPattern.ALONG:
-        strip_dir, strip_off_dir = along, across
-        extent = opts.span_m / 2 + 0.25 * fp_along
-        offsets = [-spacing, 0.0, spacing]
-    else:
-        strip_dir, strip_off_dir = across, along
-        extent = 0.6 * fp_along
-        n_strips = int(np.ceil((opts.span_m + 0.2 * fp_across) / spacing)) + 1
-        offsets = list((np.arange(n_strips) - (n_strips - 1) / 2) * spacing)
+    strip_dir, strip_off_dir, extent, offsets = _plan_strips(opts, fp_across, fp_along)
     n = int(np.ceil(2 * extent / base)) + 1
     positions = np.linspace(-extent, extent, n)
     views: list[SceneImage] = []
+    strips: list[int] = []
     for k, off in enumerate(offsets):
         sign = 1.0 if k % 2 == 0 else -1.0  # serpentine: every other strip flown backwards
         for p in positions[:: int(sign)]:
@@ -415,7 +478,8 @@ def _plan_flight(
                     t_cam_from_world=-rot @ center,
                 )
             )
-    return views
+            strips.append(k)
+    return views, strips
 
 
 # ---------------------------------------------------------------- ground texture
@@ -587,10 +651,12 @@ def build_span(opts: SyntheticSpanOptions) -> SyntheticSpan:
     terrain = _make_terrain(opts, rng)
     towers, wires = _make_towers_and_wires(opts, terrain, rng)
     camera = make_camera(opts.scale)
-    views = _plan_flight(opts, camera, wires, terrain, rng)
+    views, strips = _plan_flight(opts, camera, wires, terrain, rng)
     az, el = np.deg2rad(opts.sun_azimuth_deg), np.deg2rad(opts.sun_elevation_deg)
     sun = np.array([np.sin(az) * np.cos(el), np.cos(az) * np.cos(el), np.sin(el)])
-    span = SyntheticSpan(opts, camera, views, wires, towers, terrain, sun, ortho=np.zeros(0))
+    span = SyntheticSpan(
+        opts, camera, views, wires, towers, terrain, sun, ortho=np.zeros(0), strips=strips
+    )
     domain = _ground_domain(views, float(terrain.z.mean()))
     _bake_ortho(span, domain, rng)
     return span
@@ -962,7 +1028,9 @@ def generate_span(
                     },
                     "sun_in_world": span.sun_in_world.tolist(),
                     "tower_bases": [[float(c) for c in m[0].p] for m in span.towers],
+                    "side_overlap": opts.flight_side_overlap,
                     "num_images": len(span.views),
+                    "strips": {v.name: k for v, k in zip(span.views, span.strips, strict=True)},
                     "timing_s": {
                         "build": t_build,
                         "render": t_render,

@@ -28,18 +28,58 @@ from .triangulate import Primitives
 logger = logging.getLogger(__name__)
 
 F64 = npt.NDArray[np.float64]
+F32 = npt.NDArray[np.float32]
+Mask = npt.NDArray[np.bool_]
 
 
 @dataclass(kw_only=True)
 class VerifyOptions:
     tolerance_px: float = 1.5  # a projection this close to a wire pixel is a hit (px)
-    min_views: int = 2  # a primitive must be seen by at least this many redundant images
-    min_hit_ratio: float = 0.8  # share of the redundant images that must see a wire (paper: 1)
-    min_crossing_hits: int = 1  # hits needed from views offset across the wires from the pair
+    min_posterior: float = 0.99  # a kept primitive is the right match with at least this
+    # probability, given the hits and misses of the views that can tell it from a false match
     crossing_offset: float = 0.15  # such a view is offset across the wires by ≥ this × its height
+    prior_hit_rate: float = 0.7  # starting guess of a view's hit rate on true wire points;
+    # each view's own rate is then estimated from the points it confirms
     refine: bool = True  # move each kept point onto the wire centres of the redundant views
     num_threads: int = 2  # views processed at once (peak memory grows with it)
     margin_px: int = 24  # wire search region: bounding box of the projections plus this margin
+
+    def __post_init__(self) -> None:
+        if not 0.5 <= self.min_posterior < 1:
+            raise ValueError(f"{self.min_posterior=} but expected in [0.5, 1)")
+        if not 0 < self.tolerance_px < 20:
+            raise ValueError(f"{self.tolerance_px=} but expected in (0, 20) px")
+        if not 0 <= self.crossing_offset < 2:
+            raise ValueError(f"{self.crossing_offset=} but expected in [0, 2)")
+        if not 0 < self.prior_hit_rate < 1:
+            raise ValueError(f"{self.prior_hit_rate=} but expected in (0, 1)")
+        if self.num_threads < 1:
+            raise ValueError(f"{self.num_threads=} but expected ≥ 1")
+        if self.margin_px < 0:
+            raise ValueError(f"{self.margin_px=} but expected ≥ 0")
+
+
+@dataclass(frozen=True, eq=False)
+class ViewWirePixels:
+    """Where one view saw wires: the pixels near a wire pixel in the crop that was searched."""
+
+    view_index: int  # index into ``scene.images``
+    x0: int  # the crop's top-left pixel in the image
+    y0: int
+    shape: tuple[int, int]  # (H, W) of the crop
+    packed: npt.NDArray[np.uint8]  # the (H, W) mask, bit-packed (np.packbits)
+    direction_deg: float  # the wires' image direction used for the search
+
+    @classmethod
+    def pack(
+        cls, view_index: int, x0: int, y0: int, mask: npt.NDArray[np.bool_], direction: float
+    ) -> ViewWirePixels:
+        return cls(view_index, x0, y0, mask.shape, np.packbits(mask, axis=None), direction)
+
+    def near_wire(self) -> npt.NDArray[np.bool_]:
+        """(H, W) True within the verification tolerance of a wire pixel."""
+        n = self.shape[0] * self.shape[1]
+        return np.unpackbits(self.packed, count=n).reshape(self.shape).astype(bool)
 
 
 @dataclass(frozen=True, eq=False)
@@ -49,13 +89,24 @@ class VerifiedPoints:
     pts_in_world: F64  # (N, 3)
     hits: npt.NDArray[np.int32]  # (N,) redundant images in which the point lies on a wire
     views: npt.NDArray[np.int32]  # (N,) redundant images that see the point
+    crossing_views: npt.NDArray[np.int32]  # (N,) of those, the views offset across the
+    # wires from both pair cameras (the only ones that can reject a false match)
+    crossing_hits: npt.NDArray[np.int32]  # (N,) crossing views in which it lies on a wire
+    posterior: F64  # (N,) probability that the point is a true match
     pair_index: npt.NDArray[np.int32]  # (N,) the pair that produced it
     refined: npt.NDArray[np.bool_]  # (N,) moved onto the wire centres of its views
     decoded: list[Path]  # the images decoded for the verification
+    view_hit_rates: F64  # (V,) each view's estimated hit rate on true wire points (NaN:
+    # the view saw no confirmed point)
+    wire_pixels: list[ViewWirePixels]  # what each searched view saw, for checking whole wires
 
     def __len__(self) -> int:
         return len(self.pts_in_world)
 
+
+# Across-wire offsets (px) of the control copies of a point: a hit there is chance (as in
+# the held-out image check).
+CONTROL_OFFSETS_PX = np.array([-22.0, -18.0, -14.0, -10.0, 10.0, 14.0, 18.0, 22.0])
 
 # A wire detector for one image: (view, image, direction_deg, crop (x0, y0, x1, y1)) → the
 # WireMask of the crop.
@@ -66,9 +117,11 @@ WireMaskFn = Callable[[SceneImage, np.ndarray, float, tuple[int, int, int, int]]
 class _ViewResult:
     idx: npt.NDArray[np.int64]  # primitives this view sees
     hit: npt.NDArray[np.bool_]  # which of them land on a wire
+    chance: F64  # the chance of a hit by accident at each of them
     refine_idx: npt.NDArray[np.int64]  # primitives with a wire-centre observation here
     rows: F64  # (n, 3) their observation rows (d offset / d point)
     offsets: F64  # (n,) their across-wire offsets to the wire centre (px)
+    wire_pixels: ViewWirePixels
     t_read: float
     t_detect: float
 
@@ -166,6 +219,40 @@ def _projection_jacobian(view: SceneImage, pts: F64) -> F64:
     return d @ view.rot_cam_from_world
 
 
+def _match_prior(primitives: Sequence[Primitives]) -> F64:
+    """(N,) prior probability that each primitive is the right match.
+
+    A wire centre of the left image is matched with every centre of its right row within
+    the disparity range: at most one of those K candidates is right (and the same holds
+    from the right image's side), so each has a prior of 1 / K, at most 1/2.
+    """
+    out = []
+    for p in primitives:
+        k = np.ones(len(p))
+        for u in (p.u_left, p.u_right):
+            _, inverse, counts = np.unique(
+                np.c_[p.v, u], axis=0, return_inverse=True, return_counts=True
+            )
+            k = np.maximum(k, counts[inverse.ravel()])
+        # A centre alone on its row may still be texture: never more likely than not.
+        out.append(np.minimum(1.0 / k, 0.5))
+    return np.concatenate(out) if out else np.zeros(0)
+
+
+def _log_likelihood_ratio(
+    hit: npt.NDArray[np.bool_], chance: F64, hit_rate: float
+) -> F64:
+    """Evidence (natural log) that points are on a wire rather than off it, per observation.
+
+    A true point lands on a wire pixel with the view's hit rate; a false one by chance, at
+    the density of wire pixels around it. A hit never counts against a point, nor a miss for
+    it.
+    """
+    p0 = np.clip(chance.astype(np.float64), 1e-3, 0.95)
+    p1 = np.maximum(hit_rate, p0 + 0.02)
+    return np.where(hit, np.log(p1 / p0), np.log((1 - p1) / (1 - p0)))
+
+
 def verify_primitives(
     scene: Scene,
     primitives: Sequence[Primitives],
@@ -176,6 +263,14 @@ def verify_primitives(
     show_progress: bool = True,
 ) -> VerifiedPoints:
     """Check every primitive against the wire pixels of the redundant images.
+
+    Each view that sees a primitive either lands on a wire pixel (a hit) or not. Only views
+    offset across the wires from both cameras of the primitive's pair can tell a false match
+    from a true one (:func:`crossing_views`); their hits and misses are weighed as a
+    likelihood ratio — a true point hits with the view's hit rate, estimated from the data,
+    a false one with the local density of wire pixels — and combined with the prior that
+    one of the K candidates of a wire centre is right. A primitive is kept when its
+    posterior probability reaches ``options.min_posterior``.
 
     Args:
         scene: the oriented scene.
@@ -190,13 +285,10 @@ def verify_primitives(
         raise ValueError("no primitives to verify")
     pts = np.concatenate([p.pts_in_world for p in primitives])
     pair_of = np.concatenate([np.full(len(p), k, np.int32) for k, p in enumerate(primitives)])
-    hits = np.zeros(len(pts), np.int32)
-    views = np.zeros(len(pts), np.int32)
-    crossing_hits = np.zeros(len(pts), np.int32)
     by_name = {im.name: im for im in scene.images}
     pair_centres = np.array(
         [[by_name[a].center_in_world, by_name[b].center_in_world] for a, b in pair_images]
-    )
+    ).reshape(-1, 2, 3)
     height = float(np.median(scene.centers_in_world[:, 2]) - np.median(pts[:, 2]))
     crossing = crossing_views(
         scene.centers_in_world, pair_centres, azimuth_deg, height, options.crossing_offset
@@ -204,7 +296,7 @@ def verify_primitives(
     normal_eq = np.zeros((len(pts) if options.refine else 0, 3, 3))
     rhs = np.zeros((len(pts) if options.refine else 0, 3))
 
-    def check(view: SceneImage) -> _ViewResult | None:
+    def check(v: int, view: SceneImage) -> _ViewResult | None:
         """Project, decode, detect and compare for one view (runs in a worker thread)."""
         own = np.array([view.name in names for names in pair_images])
         # Cheap pinhole pre-cull with a wide margin, then the exact lens model.
@@ -229,55 +321,99 @@ def verify_primitives(
         t0 = time.perf_counter()
         wires = wire_mask(view, image, direction, (x0, y0, x1, y1))
         del image
-        hit = wires.dilated(options.tolerance_px)[px[:, 1] - y0, px[:, 0] - x0]
+        near_wire = wires.dilated(options.tolerance_px)
+        hit = near_wire[px[:, 1] - y0, px[:, 0] - x0]
+        # The chance of a hit by accident: the same test on copies of the point displaced
+        # across the wire direction, shrunk towards the crop's wire-pixel density.
+        a = np.deg2rad(direction)
+        normal = np.array([-np.sin(a), np.cos(a)])
+        shifted = (uv - [x0, y0])[:, None, :] + CONTROL_OFFSETS_PX[None, :, None] * normal
+        sx = np.clip(np.floor(shifted[..., 0]).astype(np.int64), 0, near_wire.shape[1] - 1)
+        sy = np.clip(np.floor(shifted[..., 1]).astype(np.int64), 0, near_wire.shape[0] - 1)
+        n_ctrl = len(CONTROL_OFFSETS_PX)
+        chance = (near_wire[sy, sx].sum(axis=1) + n_ctrl * near_wire.mean()) / (2 * n_ctrl)
         t_detect = time.perf_counter() - t0
         hid = idx[hit] if options.refine else np.zeros(0, np.int64)
         rows = offset = np.zeros(0)
         if options.refine and hit.any():
             # One Gauss-Newton observation per hit: the across-wire offset to the centre.
-            a = np.deg2rad(direction)
-            normal = np.array([-np.sin(a), np.cos(a)])
             offset = _wire_offsets(
                 wires.response, uv[hit] - [x0, y0], normal, options.tolerance_px + 1
             )
             ok = np.isfinite(offset)
             hid, offset = hid[ok], offset[ok]
             rows = np.einsum("j,njk->nk", normal, _projection_jacobian(view, pts[hid]))
-        return _ViewResult(idx, hit, hid, rows, offset, t_read, t_detect)
+        pixels = ViewWirePixels.pack(v, x0, y0, near_wire, direction)
+        return _ViewResult(idx, hit, chance, hid, rows, offset, pixels, t_read, t_detect)
 
     t_detect = t_read = 0.0
     decoded: list[Path] = []
+    wire_pixels: list[ViewWirePixels] = []
+    # Per view: (view index, primitives seen, hit, chance, crossing); kept to weigh them once
+    # every view's hit rate is known.
+    observations: list[tuple[int, npt.NDArray[np.int64], npt.NDArray[np.bool_], F64, Mask]] = []
     # Two views at a time: decoding, filtering and projecting release the GIL.
-    with ThreadPoolExecutor(max_workers=max(1, options.num_threads)) as pool:
+    with ThreadPoolExecutor(max_workers=options.num_threads) as pool:
         # A short queue of views in flight keeps memory to a few views' results.
         pending: deque = deque()
-        images = iter(scene.images)
+        images = iter(enumerate(scene.images))
         for _ in range(options.num_threads + 1):
             view0 = next(images, None)
             if view0 is not None:
-                pending.append(pool.submit(check, view0))
+                pending.append(pool.submit(check, *view0))
         for v, view in enumerate(
             tqdm(scene.images, desc="verify", unit="img", disable=not show_progress)
         ):
             res = pending.popleft().result()
             nxt = next(images, None)
             if nxt is not None:
-                pending.append(pool.submit(check, nxt))
+                pending.append(pool.submit(check, *nxt))
             if res is None:
                 continue
             decoded.append(view.path)
+            wire_pixels.append(res.wire_pixels)
             t_read += res.t_read
             t_detect += res.t_detect
-            views[res.idx] += 1
-            hits[res.idx] += res.hit
-            crossing_hits[res.idx] += res.hit & crossing[pair_of[res.idx], v]
+            observations.append(
+                (v, res.idx.astype(np.int64), res.hit, res.chance, crossing[pair_of[res.idx], v])
+            )
             if len(res.refine_idx):
                 # refine_idx is unique within one view: fancy-index accumulation is exact.
                 normal_eq[res.refine_idx] += res.rows[:, :, None] * res.rows[:, None, :]
                 rhs[res.refine_idx] += res.rows * res.offsets[:, None]
-    need = np.maximum(np.ceil(options.min_hit_ratio * views - 1e-9), 1).astype(np.int32)
-    keep = (views >= options.min_views) & (hits >= need)
-    keep &= crossing_hits >= options.min_crossing_hits
+
+    views = np.zeros(len(pts), np.int32)
+    hits = np.zeros(len(pts), np.int32)
+    n_crossing = np.zeros(len(pts), np.int32)
+    crossing_hits = np.zeros(len(pts), np.int32)
+    for _, idx, hit, _, cross in observations:
+        views[idx] += 1
+        hits[idx] += hit
+        n_crossing[idx] += cross
+        crossing_hits[idx] += hit & cross
+    prior = _match_prior(primitives)
+    prior_logit = np.log(prior) - np.log1p(-np.minimum(prior, 1 - 1e-9))
+    hit_rate = np.full(len(scene.images), options.prior_hit_rate)
+
+    def posterior() -> F64:
+        evidence = np.zeros(len(pts))
+        for v, idx, hit, chance, cross in observations:
+            llr = _log_likelihood_ratio(hit[cross], chance[cross], hit_rate[v])
+            np.add.at(evidence, idx[cross], llr)
+        return 1.0 / (1.0 + np.exp(-np.clip(prior_logit + evidence, -50, 50)))
+
+    # Each view's hit rate on true points, from the points the other views confirm.
+    post = posterior()
+    for _ in range(2):
+        confident = post > options.min_posterior
+        rates = np.full(len(scene.images), np.nan)
+        for v, idx, hit, _, _ in observations:
+            sure = confident[idx]
+            if sure.sum() >= 30:
+                rates[v] = float(hit[sure].mean())
+        hit_rate = np.where(np.isfinite(rates), np.clip(rates, 0.05, 0.99), options.prior_hit_rate)
+        post = posterior()
+    keep = post >= options.min_posterior
     kept_pts = pts[keep]
     refined = np.zeros(len(kept_pts), bool)
     if options.refine and keep.any():
@@ -291,13 +427,31 @@ def verify_primitives(
         refined &= hits[keep] >= 2
         kept_pts[refined] += step[refined]
     logger.info(
-        "verify: %d of %d primitives kept (%.1f %%), median %d redundant views; "
-        "decode %.1f s, wire masks %.1f s (summed over threads)",
+        "verify: %d of %d primitives kept (%.1f %%; posterior ≥ %.2f), median %d redundant "
+        "views of which %d cross; hit rate of the views on true points %s; decode %.1f s, "
+        "wire masks %.1f s (summed over threads)",
         keep.sum(),
         len(pts),
         100 * keep.mean() if len(pts) else 0.0,
+        options.min_posterior,
         int(np.median(views)) if len(views) else 0,
+        int(np.median(n_crossing)) if len(views) else 0,
+        np.round(np.nanquantile(rates, [0.1, 0.5, 0.9]), 2).tolist()
+        if np.isfinite(rates).any()
+        else "unknown",
         t_read,
         t_detect,
     )
-    return VerifiedPoints(kept_pts, hits[keep], views[keep], pair_of[keep], refined, decoded)
+    return VerifiedPoints(
+        kept_pts,
+        hits[keep],
+        views[keep],
+        n_crossing[keep],
+        crossing_hits[keep],
+        post[keep],
+        pair_of[keep],
+        refined,
+        decoded,
+        rates,
+        wire_pixels,
+    )

@@ -154,7 +154,13 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--work_path", type=Path, default=Path("bench_work"))
     parser.add_argument("--scales", type=float, nargs="+", default=[1.0, 0.5])
     parser.add_argument("--backgrounds", nargs="+", default=["vegetation", "bare_soil", "mixed"])
-    parser.add_argument("--flight", default="across")
+    parser.add_argument(
+        "--flight",
+        default="across",
+        choices=["corridor", "along4", "grid", "across"],
+        help="flight pattern of the synthetic spans (default %(default)s; see "
+        "scripts/benchmark_flights.py for a matrix of flights)",
+    )
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument(
         "--set",

@@ -2,6 +2,7 @@
 """Render a synthetic power-line span with known wires (every SyntheticSpanOptions field is a flag).
 
 python scripts/make_synthetic_span.py --output_path spans/veg --scale 0.5 --background mixed
+python scripts/make_synthetic_span.py --output_path spans/grid --flight grid --grid_angle_deg 35
 """
 
 from __future__ import annotations
@@ -30,9 +31,17 @@ def main(argv: list[str] | None = None) -> None:
                 default=value,
                 help=f"(default {value})",
             )
+        elif value is None:  # side_overlap: None picks the flight pattern's own default
+            parser.add_argument(
+                f"--{f.name}", type=float, default=None, help="(default: per --flight)"
+            )
         elif isinstance(value, StrEnum):
             parser.add_argument(
-                f"--{f.name}", type=type(value), choices=list(type(value)), default=value
+                f"--{f.name}",
+                type=type(value),
+                choices=list(type(value)),
+                default=value,
+                help=f"(default {value})",
             )
         else:
             parser.add_argument(

@@ -13,6 +13,7 @@ import pytest
 from colmap_powerline import InputError, load_scene
 from colmap_powerline.scene import read_image, resolve_inputs
 from colmap_powerline.synthetic import (
+    FlightPattern,
     SyntheticSpanOptions,
     Terrain,
     build_span,
@@ -223,3 +224,81 @@ def test_truth_is_self_consistent_and_deterministic():
             assert w.sag_m() == pytest.approx(w.length_m**2 / (8 * w.catenary_a_m), rel=0.01)
     assert len(a.wires) == 8 and sum(w.kind == "shield" for w in a.wires) == 2
     assert len(a.views) == len(b.views) > 10
+
+
+def _strip_coverage(span) -> tuple[np.ndarray, np.ndarray]:
+    """(strips,) angle (deg) between each strip and the line, and (strips, wires) the share
+    of each true wire's length (2 m clear of the towers) inside the images of each strip."""
+    strips = np.array(span.strips)
+    az = np.deg2rad(span.options.line_azimuth_deg)
+    along = np.array([np.sin(az), np.cos(az)])
+    angles, cover = [], []
+    for k in range(strips.max() + 1):
+        views = [v for v, s in zip(span.views, strips, strict=True) if s == k]
+        c = np.array([v.center_in_world[:2] for v in views])
+        direction = np.linalg.svd(c - c.mean(axis=0))[2][0]  # the strip's main axis
+        angles.append(np.degrees(np.arccos(min(abs(direction @ along), 1.0))))
+        row = []
+        for w in span.wires:
+            pts = w.points(np.arange(2.0, w.length_m - 2.0, 0.5))
+            seen = np.zeros(len(pts), bool)
+            for v in views:
+                seen |= v.project(pts)[2]
+            row.append(seen.mean())
+        cover.append(row)
+    return np.array(angles), np.array(cover)
+
+
+@pytest.mark.parametrize(
+    "flight,num_strips,num_images,angle_deg",
+    [
+        (FlightPattern.CORRIDOR, 3, 24, 0.0),
+        (FlightPattern.ALONG4, 4, 32, 0.0),
+        (FlightPattern.GRID, 5, 50, 35.0),
+        (FlightPattern.ACROSS, 4, 32, 90.0),
+    ],
+)
+def test_flight_patterns(flight, num_strips, num_images, angle_deg):
+    """Geometry only (no image rendered): strips, their direction, who sees the wires."""
+    opts = SyntheticSpanOptions(scale=0.05, flight=flight, show_progress=False)
+    span = build_span(opts)
+    assert len(span.views) == num_images and len(span.strips) == num_images
+    angles, cover = _strip_coverage(span)
+    assert len(angles) == num_strips
+    np.testing.assert_allclose(angles, angle_deg, atol=1.0)
+    conductor = np.array([w.kind == "conductor" for w in span.wires])
+    seen = cover >= 0.25  # a quarter of the wire inside the strip's images at least
+    if flight is FlightPattern.CORRIDOR:
+        # The middle strip sees every wire whole; the outer strips (65 % side overlap on
+        # the ground, far less at wire height) see the near conductors only, and the
+        # shield wires — highest, so with the smallest footprint — not at all.
+        assert (cover[1] > 0.99).all()
+        assert (seen[:, conductor].sum(axis=0) >= 2).all()
+        assert (cover[[0, 2]][:, ~conductor] == 0).all()
+    elif flight is FlightPattern.ALONG4:
+        # The line runs between the two middle strips: both see every wire whole.
+        assert (cover[[1, 2]] > 0.99).all()
+        assert (cover[[0, 3]] < 0.25).all()
+    elif flight is FlightPattern.GRID:
+        # The strip over the line sees every wire whole, its two neighbours a part each.
+        assert (cover[num_strips // 2] > 0.99).all()
+        assert (seen.sum(axis=0) >= 3).all()
+    else:
+        # Every strip crosses the line; the two middle ones see most of every wire.
+        assert (seen.sum(axis=0) >= 2).all()
+    again = build_span(opts)
+    np.testing.assert_array_equal(
+        [v.center_in_world for v in span.views], [v.center_in_world for v in again.views]
+    )
+
+
+def test_grid_angle_and_along_alias():
+    span = build_span(
+        SyntheticSpanOptions(scale=0.05, flight="grid", grid_angle_deg=60.0, show_progress=False)
+    )
+    angles, _ = _strip_coverage(span)
+    np.testing.assert_allclose(angles, 60.0, atol=1.0)
+    with pytest.warns(DeprecationWarning, match="corridor"):
+        assert FlightPattern("along") is FlightPattern.CORRIDOR
+    assert SyntheticSpanOptions(flight="along4").flight_side_overlap == 0.68
+    assert SyntheticSpanOptions(flight="along4", side_overlap=0.7).flight_side_overlap == 0.7

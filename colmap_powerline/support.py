@@ -1,0 +1,320 @@
+"""Whole-wire support: does each fitted wire lie on wires in the views, and can they tell?
+
+Point-by-point verification weighs only the views offset across the wires from both
+cameras of a point's pair; with the parallel wires of a line, a false pairing (image wire i
+matched with image wire j) can still collect a few lucky hits and gather into a wire-shaped
+curve. A false pairing is a false *wire*: projected as a whole into a view that can tell, it
+falls between the wires over its whole length, while a true wire lies on them wherever the
+view sees it. So every fitted wire is projected into every view that was searched for wires,
+and its share of projected length on wire pixels is compared with the chance level there
+(the same test on copies of it displaced across the wire, as the held-out image check does).
+
+Each wire gets a confidence (the posterior probability that it is a real wire, from the
+views that can tell) and a description of its geometry: how many views saw it, from how many
+distinct positions across it ("strips"), and how many of them can tell it from a false
+pairing. Wires that such views reject are dropped; wires that no such view sees are kept,
+flagged as resting on weak geometry, with what to fly to make it strong.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Sequence
+from dataclasses import asdict, dataclass
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+from scipy.spatial import cKDTree
+
+from .scene import Scene
+from .verify import CONTROL_OFFSETS_PX, ViewWirePixels, crossing_views
+from .wires import FittedWire
+
+logger = logging.getLogger(__name__)
+
+F64 = npt.NDArray[np.float64]
+
+
+@dataclass(kw_only=True)
+class SupportOptions:
+    min_confidence: float = 0.99  # wires that views able to tell make less likely than this
+    # to be real are dropped
+    correlation_length_px: float = 15.0  # hits along a wire are independent only this far
+    # apart (the detector's template length)
+    min_projected_px: float = 30.0  # a view counts for a wire when this much of it lies in
+    # the region that view searched
+    min_pair_share: float = 0.2  # pairs that gave this share of a wire's points produced it
+
+    def __post_init__(self) -> None:
+        if not 0.5 <= self.min_confidence < 1:
+            raise ValueError(f"{self.min_confidence=} but expected in [0.5, 1)")
+        if self.correlation_length_px < 1:
+            raise ValueError(f"{self.correlation_length_px=} but expected ≥ 1 px")
+        if self.min_projected_px < 1:
+            raise ValueError(f"{self.min_projected_px=} but expected ≥ 1 px")
+        if not 0 < self.min_pair_share <= 1:
+            raise ValueError(f"{self.min_pair_share=} but expected in (0, 1]")
+
+
+@dataclass(frozen=True)
+class WireSupport:
+    """How well the views support one wire."""
+
+    wire_id: int
+    views: int  # views in which the wire was looked for
+    strips: int  # groups of those views at distinct positions across the wire
+    crossing_views: int  # views offset across the wire from both cameras of every pair
+    # that measured it: the only ones that can tell it from a false pairing
+    hit_rate: float  # share of its projected length on wire pixels, over all views
+    crossing_hit_rate: float | None  # the same over the crossing views
+    chance: float  # the share expected by accident (displaced copies of the wire)
+    confidence: float | None  # probability that it is a real wire, from the stretches of it
+    # that no better supported wire explains (None: there are none)
+    geometry: str  # "strong": crossing views confirm it; "weak": no view can tell it from a
+    # false pairing (the confidence then comes from the other views)
+    advice: str | None = None  # what to fly to make weak geometry strong
+
+    def to_json(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+@dataclass(frozen=True, eq=False)
+class _ViewMeasure:
+    view_index: int
+    uv: F64  # (n, 2) the wire's samples (half a pixel apart) in the view's crop
+    normal: F64  # (n, 2) unit image normals of the wire there
+    hit: npt.NDArray[np.bool_]  # (n,) on a wire pixel
+    control: F64  # (n,) share of the displaced copies on a wire pixel (chance)
+
+    def share(self, own: npt.NDArray[np.bool_]) -> tuple[float, float, float]:
+        """(length px, hit share, chance) over the samples ``own``."""
+        n = int(own.sum())
+        if n == 0:
+            return 0.0, 0.0, 0.0
+        return 0.5 * n, float(self.hit[own].mean()), float(self.control[own].mean())
+
+
+def _measure_in_view(
+    scene: Scene, wire: FittedWire, pixels: ViewWirePixels, near_wire: npt.NDArray[np.bool_]
+) -> _ViewMeasure | None:
+    """Project the wire into one view; its hit share and chance level in the searched crop."""
+    view = scene.images[pixels.view_index]
+    lo, hi = wire.s_range
+    depth = float(np.median(view.to_cam(wire.points(np.array([lo, 0.5 * (lo + hi), hi])))[:, 2]))
+    if depth <= 0:
+        return None
+    step = 0.5 * depth / view.focal_px  # half a pixel at the wire
+    poly = wire.points(np.arange(lo, hi + 1e-9, step))
+    uv, _, inside = view.project(poly)
+    if inside.sum() < 3:
+        return None
+    uv = uv[inside] - [pixels.x0, pixels.y0]
+    h, w = pixels.shape
+    in_crop = (uv[:, 0] >= 0) & (uv[:, 1] >= 0) & (uv[:, 0] < w) & (uv[:, 1] < h)
+    if in_crop.sum() < 3:
+        return None
+    tangent = np.gradient(uv, axis=0)
+    tangent /= np.maximum(np.linalg.norm(tangent, axis=1, keepdims=True), 1e-9)
+    normal = np.c_[-tangent[:, 1], tangent[:, 0]]
+    uv, normal = uv[in_crop], normal[in_crop]
+
+    def on_wire(pts: F64) -> npt.NDArray[np.bool_]:
+        x = np.clip(np.floor(pts[:, 0]).astype(np.int64), 0, w - 1)
+        y = np.clip(np.floor(pts[:, 1]).astype(np.int64), 0, h - 1)
+        return near_wire[y, x]
+
+    control = np.mean([on_wire(uv + o * normal) for o in CONTROL_OFFSETS_PX], axis=0)
+    return _ViewMeasure(pixels.view_index, uv, normal, on_wire(uv), control)
+
+
+def _explained(
+    measure: _ViewMeasure, others: list[_ViewMeasure], radius_px: float
+) -> npt.NDArray[np.bool_]:
+    """(n,) samples of a wire that lie on (within ``radius_px`` of) another wire in this view."""
+    out = np.zeros(len(measure.uv), bool)
+    for o in others:
+        if len(o.uv):
+            d, _ = cKDTree(o.uv).query(measure.uv, distance_upper_bound=radius_px)
+            out |= np.isfinite(d)
+    return out
+
+
+def _strips(offsets: F64, gap: float) -> list[F64]:
+    """Group positions across the wire into strips: sorted runs closer than ``gap``."""
+    order = np.sort(offsets)
+    cuts = np.flatnonzero(np.diff(order) > gap) + 1
+    return np.split(order, cuts)
+
+
+def _advice(wire: FittedWire, groups: list[F64], need: float) -> str:
+    """What to fly so that a view can tell this wire from a false pairing."""
+    mid = wire.points(np.array([0.5 * sum(wire.s_range)]))[0]
+    centres = [float(np.median(g)) for g in groups]
+    # An offset at least ``need`` from every strip that sees it, as close to the wire as that.
+    options = [0.0, *(c + need for c in centres), *(c - need for c in centres)]
+    ok = [o for o in options if all(abs(o - c) >= need for c in centres)]
+    target = min(ok, key=abs)
+    side = (
+        "over the line"
+        if abs(target) < 0.5 * need
+        else f"{abs(target):.0f} m to the " + ("right" if target > 0 else "left")
+    )
+    return (
+        f"only {len(groups)} strip(s) see it (at {', '.join(f'{c:+.0f}' for c in centres)} "
+        f"m across the wire): fly one more strip along the line {side} of it (at least "
+        f"{need:.0f} m from the others), or a few images across the line near "
+        f"({mid[0]:.1f}, {mid[1]:.1f})"
+    )
+
+
+def _evidence(length_px: F64, hit: F64, chance: F64, correlation_px: float) -> float:
+    """Log likelihood ratio, summed over views: the wire hits more often than chance
+    (its hit share itself the best estimate of how often a real wire hits) against it
+    hitting at chance. Hits along a wire are independent only ``correlation_px`` apart."""
+    c = np.clip(chance, 1e-3, 0.95)
+    f = np.clip(hit, 1e-6, 1 - 1e-6)
+    kl = f * np.log(f / c) + (1 - f) * np.log((1 - f) / (1 - c))
+    return float(np.sum(np.where(f > c, kl, 0.0) * length_px / correlation_px))
+
+
+def wire_support(
+    scene: Scene,
+    wires: Sequence[FittedWire],
+    wire_pixels: Sequence[ViewWirePixels],
+    point_pair: npt.NDArray[np.int32],
+    pair_centres: F64,
+    crossing_offset: float,
+    tolerance_px: float,
+    options: SupportOptions | None = None,
+) -> list[WireSupport]:
+    """Measure every wire in every searched view and weigh the views that can tell.
+
+    Wires are taken from the best supported down. In each view, the stretches of a wire
+    that lie on a wire already accepted are explained by it and do not count: a false
+    pairing of image wires i and j lies on wire i in the views along the wires from one
+    camera and on wire j from the other, and nowhere else.
+
+    Args:
+        scene: the oriented scene.
+        wires: the fitted wires.
+        wire_pixels: what each searched view saw (from verification).
+        point_pair: (N,) the pair that produced each verified point (``wire.point_indices``
+            index it).
+        pair_centres: (P, 2, 3) the camera centres of each pair.
+        crossing_offset: a view can tell when it is offset across the wire from both cameras
+            of a pair by this share of its height above the wire.
+        tolerance_px: how close to a wire pixel a projection counts as on it.
+
+    Returns:
+        One :class:`WireSupport` per wire, in the same order (``confidence`` None when no
+        view sees a stretch of it that other wires do not explain).
+    """
+    options = options or SupportOptions()
+    masks = [(p, p.near_wire()) for p in wire_pixels]
+    density = {p.view_index: float(m.mean()) for p, m in masks}
+    centres = scene.centers_in_world
+    measured = []
+    for wire in wires:
+        ms = [m for p, mask in masks if (m := _measure_in_view(scene, wire, p, mask)) is not None]
+        ms = [m for m in ms if 0.5 * len(m.uv) >= options.min_projected_px]
+        pairs = point_pair[wire.point_indices]
+        counts = np.bincount(pairs, minlength=len(pair_centres))
+        produced = np.flatnonzero(counts >= options.min_pair_share * max(len(pairs), 1))
+        mid = wire.points(np.array([0.5 * sum(wire.s_range)]))[0]
+        height = float(np.median(centres[:, 2]) - mid[2])
+        azimuth = float(np.rad2deg(np.arctan2(*wire.plane_direction_xy)) % 180.0)
+        view_idx = np.array([m.view_index for m in ms], np.int64)
+        cross = np.zeros(len(ms), bool)
+        if len(produced) and len(ms):
+            cross = crossing_views(
+                centres[view_idx], pair_centres[produced], azimuth, height, crossing_offset
+            ).all(axis=0)
+        normal = np.array([wire.plane_direction_xy[1], -wire.plane_direction_xy[0]])
+        lateral = (centres[view_idx, :2] - wire.plane_origin_xy) @ normal
+        groups = _strips(lateral, crossing_offset * height) if len(lateral) else []
+        strength = sum(0.5 * len(m.uv) * (m.hit.mean() - m.control.mean()) for m in ms)
+        measured.append((ms, cross, groups, height, strength))
+
+    accepted: dict[int, list[_ViewMeasure]] = {}
+    radius = 2 * tolerance_px + 1
+    out: list[WireSupport | None] = [None] * len(wires)
+    for k in sorted(range(len(wires)), key=lambda k: -measured[k][4]):
+        wire = wires[k]
+        ms, cross, groups, height, _ = measured[k]
+        rows = np.array(
+            [m.share(~_explained(m, accepted.get(m.view_index, []), radius)) for m in ms]
+        ).reshape(-1, 3)
+        length, hit, control = rows.T
+        chance = np.maximum(control, [density[m.view_index] for m in ms])
+        informative = length >= options.min_projected_px
+        # Views that can tell decide wherever there are any (even when what they see of the
+        # wire is all explained by other wires); only without them do the others speak.
+        strong = bool(cross.any())
+        use = cross & informative if strong else informative
+        confidence = None
+        if use.any():
+            llr = _evidence(length[use], hit[use], chance[use], options.correlation_length_px)
+            confidence = float(1 / (1 + np.exp(-min(llr, 50.0))))
+        if confidence is not None and confidence >= options.min_confidence:
+            for m in ms:
+                accepted.setdefault(m.view_index, []).append(m)
+        all_len = np.maximum(0.5 * np.array([len(m.uv) for m in ms]), 1e-9)
+        all_hit = np.array([m.hit.mean() for m in ms])
+        all_chance = np.array([m.control.mean() for m in ms])
+        out[k] = WireSupport(
+            wire_id=wire.wire_id,
+            views=len(ms),
+            strips=len(groups),
+            crossing_views=int(cross.sum()),
+            hit_rate=float(np.average(all_hit, weights=all_len)) if ms else 0.0,
+            crossing_hit_rate=float(np.average(hit[use], weights=length[use])) if strong else None,
+            chance=float(np.average(all_chance, weights=all_len)) if ms else 0.0,
+            confidence=confidence,
+            geometry="strong" if strong else "weak",
+            advice=None
+            if strong or not groups
+            else _advice(wire, groups, crossing_offset * height),
+        )
+    return [s for s in out if s is not None]
+
+
+def keep_supported(
+    wires: Sequence[FittedWire], supports: Sequence[WireSupport], options: SupportOptions
+) -> tuple[list[FittedWire], list[WireSupport]]:
+    """Drop the wires that the views able to tell reject; warn about weak geometry."""
+    kept, kept_support = [], []
+    for w, s in zip(wires, supports, strict=True):
+        if s.confidence is None or s.confidence < options.min_confidence:
+            logger.info(
+                "support: wire %d dropped (%.0f m): confidence %s, on wires %.0f %% of its "
+                "length in %d views (%d crossing), chance %.0f %% — a false pairing of image "
+                "wires, or explained by other wires",
+                w.wire_id,
+                w.s_range[1] - w.s_range[0],
+                "none" if s.confidence is None else f"{s.confidence:.3f}",
+                100 * s.hit_rate,
+                s.views,
+                s.crossing_views,
+                100 * s.chance,
+            )
+            continue
+        kept.append(w)
+        kept_support.append(s)
+    for w, s in zip(kept, kept_support, strict=True):
+        if s.geometry == "weak":
+            logger.warning(
+                "wire %d rests on weak geometry (%d views, no view can tell it from a false "
+                "pairing of neighbouring wires): %s",
+                w.wire_id,
+                s.views,
+                s.advice,
+            )
+    logger.info(
+        "support: %d of %d wires kept (%d on strong geometry); confidence %s",
+        len(kept),
+        len(wires),
+        sum(s.geometry == "strong" for s in kept_support),
+        [None if s.confidence is None else round(s.confidence, 3) for s in kept_support],
+    )
+    return kept, kept_support
