@@ -30,16 +30,12 @@ F64 = npt.NDArray[np.float64]
 @dataclass(kw_only=True)
 class PairsOptions:
     wire_azimuth_deg: float | None = None  # the wires' direction, clockwise from +y; None: estimate
-    wire_height: float | None = None  # wire height above ground for the corridor (model
-    # units); None: the height at which the line evidence of several images agrees best
-    wire_heights_scanned: tuple[float, ...] = (4, 6, 8, 10, 12, 15, 18, 22, 26, 30, 35, 42, 50)
     candidate_tolerance_deg: float = 2.5  # image directions this close form one candidate
     # (a road and the line beside it may differ by only a few degrees)
-    max_candidates: int = 5  # candidate directions judged by elevation
-    refine_offsets_deg: tuple[float, ...] = (-6, -4, -2, 2, 4, 6)  # tried around a candidate
-    refine_gain: float = 1.6  # ... and taken when its elevation ratio is this much higher
-    refine_min_ratio: float = 2.0  # ... and clearly elevated
-    min_elevated_ratio: float = 1.3  # agreement at wire height / on the ground for "wires"
+    max_candidates: int = 5  # candidate directions found in the images
+    probe_candidates: int = 3  # of those, the strongest this many are probed in 3D
+    probe_pairs: int = 2  # pairs triangulated and verified to probe a direction
+    probe_views: int = 14  # the views nearest those pairs that verify the probe
     num_direction_images: int = 6  # images used to estimate the direction and corridor
     analysis_width_px: int = 800  # those images are analysed at about this width
     scan_step_deg: float = 3.0  # orientation scan step
@@ -51,7 +47,7 @@ class PairsOptions:
     min_base_height: float = 0.15  # base/height ratio range of useful pairs
     max_base_height: float = 1.6
     target_base_height: float = 0.7  # ratios beyond this gain no score
-    max_pairs: int = 6  # pairs used at most
+    max_pairs: int = 12  # pairs used at most (fewer when they already cover the corridor)
     pairs_per_point: int = 2  # how many pairs should cover each part of the corridor
     border_margin_frac: float = 0.05  # corridor points this close to an image border do not count
 
@@ -65,8 +61,10 @@ class WireCorridor:
     half_width: float  # model units, with the margin
     wires_half_width: float  # half the width of the band where the wires were seen
     s_range: tuple[float, float]  # extent along the line from centre_xy
-    height: float  # absolute height used for the corridor points (ground + wire_height)
+    height: float  # absolute height of the corridor's centre line (model units)
+    height_range: tuple[float, float]  # absolute heights between which the wires hang
     from_images: bool  # False when the direction was given by the user
+    measured: bool  # True when band and heights come from wire points measured in 3D
     decoded: tuple[Path, ...] = ()  # the images decoded for the estimate
 
     @property
@@ -80,12 +78,14 @@ class WireCorridor:
         return np.array([d[1], -d[0]])
 
     def sample_points(self, step: float = 1.0, margin: float = 5.0) -> F64:
-        """(N, 3) points on five lines along the wire band (its width plus ``margin``)."""
+        """(2, N, 3) points on five lines along the wire band (its width plus ``margin``), at
+        the lowest and at the highest wire height: a place counts as seen when both are."""
         line = self.centreline(step)
         w = self.wires_half_width + margin
-        return np.concatenate(
+        flat = np.concatenate(
             [line + np.r_[k * w * self.normal_xy, 0.0] for k in (-1, -0.5, 0, 0.5, 1)]
         )
+        return np.stack([np.c_[flat[:, :2], np.full(len(flat), z)] for z in self.height_range])
 
     def centreline(self, step: float = 1.0) -> F64:
         """(N, 3) points along the corridor's centre line at the corridor height."""
@@ -176,20 +176,6 @@ def _line_pixels(
     return (pts + 0.5) * factor
 
 
-def _plan_consistency(planes: list[F64], normal: F64) -> float:
-    """How well line positions across the direction agree between images (0..1): histogram
-    intersection of their offsets, averaged over image pairs."""
-    offsets = [p @ normal for p in planes if len(p) > 10]
-    if len(offsets) < 2:
-        return 0.0
-    lo = min(float(np.quantile(o, 0.01)) for o in offsets)
-    hi = max(float(np.quantile(o, 0.99)) for o in offsets)
-    bins = np.arange(lo - 1, hi + 1.5, 0.5)
-    hists = [np.histogram(o, bins)[0] / len(o) for o in offsets]
-    scores = [np.minimum(a, b).sum() for i, a in enumerate(hists) for b in hists[i + 1 :]]
-    return float(np.mean(scores))
-
-
 def _world_azimuth(view: SceneImage, angle: float, height: float) -> float:
     """Image direction at the image centre → azimuth of a horizontal line at ``height``."""
     c_px = np.array([view.width / 2, view.height / 2])
@@ -247,19 +233,34 @@ def _consensus_azimuth(
     return float(np.rad2deg(mean) / 2 % 180.0)
 
 
-def estimate_corridor(scene: Scene, options: PairsOptions | None = None) -> WireCorridor:
-    """Estimate the wires' direction (unless given) and their corridor from 2D line evidence."""
+@dataclass(frozen=True, eq=False)
+class DirectionCandidates:
+    """Line directions that several images agree on, strongest first, and the images read."""
+
+    azimuths_deg: tuple[float, ...]
+    weights: tuple[float, ...]  # summed line contrast of the images that agree
+    analysed: tuple[tuple[SceneImage, F64, int], ...]  # (view, grey image, downscale factor)
+    ground_z: float  # median ground height under the cameras
+    flying_height: float  # median camera height above that ground
+
+    @property
+    def decoded(self) -> tuple[Path, ...]:
+        return tuple(v.path for v, _, _ in self.analysed)
+
+
+def direction_candidates(scene: Scene, options: PairsOptions | None = None) -> DirectionCandidates:
+    """Long thin image lines → horizontal directions in the world that several images share.
+
+    Wires are among them, but so are roads, field rows, shadows and field edges; which one is
+    the wires is decided in 3D (:func:`colmap_powerline.pipeline.probe_corridor`). A given
+    ``wire_azimuth_deg`` is the only candidate.
+    """
     options = options or PairsOptions()
     ground_z = float(np.median(scene.ground_height(scene.centers_in_world[:, :2])))
     flying = float(np.median(scene.centers_in_world[:, 2])) - ground_z
-    heights = (
-        [options.wire_height]
-        if options.wire_height is not None
-        else [h for h in options.wire_heights_scanned if h < 0.8 * flying] or [0.3 * flying]
-    )
-    height = ground_z + float(np.median(heights))  # for image directions only
+    height = ground_z + 0.3 * flying  # for image directions only (nadir: hardly matters)
     views = _pick_spread(scene, options.num_direction_images)
-    analysed = []  # (view, grey image at analysis scale, downscale factor)
+    analysed = []
     azimuths, weights = [], []
     for view in views:
         raw = read_image(view.path, cv2.IMREAD_GRAYSCALE)
@@ -268,96 +269,84 @@ def estimate_corridor(scene: Scene, options: PairsOptions | None = None) -> Wire
             raw, (raw.shape[1] // factor, raw.shape[0] // factor), interpolation=cv2.INTER_AREA
         ).astype(np.float32)
         analysed.append((view, gray, factor))
-        for angle, contrast in _image_directions(gray, options):
-            azimuths.append(_world_azimuth(view, angle, height))
-            weights.append(contrast)
-    az_arr, w_arr = np.asarray(azimuths), np.asarray(weights)
-
-    def line_pixels(azimuth: float) -> list[tuple[SceneImage, F64]]:
-        return [
-            (v, _line_pixels(v, g, f, _image_angle(v, azimuth, height), options))
-            for v, g, f in analysed
-        ]
-
-    def planes(pixels: list[tuple[SceneImage, F64]], z: float) -> list[F64]:
-        return [_to_plane(v, px, z) for v, px in pixels]
-
-    def elevation(azimuth: float) -> tuple[float, float, float]:
-        """(agreement at the best wire height, that / agreement on the ground, that height).
-
-        Road markings, field rows and shadows are long lines too, but on the ground: their
-        positions agree between images when projected to the ground, while wires agree
-        only at their own height."""
-        pixels = line_pixels(azimuth)
-        n = np.array([np.cos(np.deg2rad(azimuth)), -np.sin(np.deg2rad(azimuth))])
-        at_ground = _plan_consistency(planes(pixels, ground_z), n)
-        best = max((_plan_consistency(planes(pixels, ground_z + h), n), h) for h in heights)
-        return best[0], best[0] / max(at_ground, 1e-9), ground_z + best[1]
-
+        if options.wire_azimuth_deg is None:
+            for angle, contrast in _image_directions(gray, options):
+                azimuths.append(_world_azimuth(view, angle, height))
+                weights.append(contrast)
     if options.wire_azimuth_deg is not None:
-        azimuth = float(options.wire_azimuth_deg) % 180.0
-        if len(heights) > 1:
-            height = elevation(azimuth)[2]
+        cands = [(float(options.wire_azimuth_deg) % 180.0, 1.0)]
     else:
-        # Candidate directions that several images agree on, judged by elevation.
-        candidates: list[tuple[float, float]] = []
+        az_arr, w_arr = np.asarray(azimuths), np.asarray(weights)
+        cands = []
         remaining = np.ones(len(az_arr), bool)
         tol = options.candidate_tolerance_deg
-        while remaining.any() and len(candidates) < options.max_candidates:
+        while remaining.any() and len(cands) < options.max_candidates:
             cand = _consensus_azimuth(
                 az_arr[remaining], w_arr[remaining], tolerance_deg=tol, min_share=0.0
             )
             if cand is None:
                 break
             near = np.abs((az_arr - cand + 90) % 180 - 90) < tol
-            candidates.append((cand, float(w_arr[near & remaining].sum())))
+            cands.append((cand, float(w_arr[near & remaining].sum())))
             remaining &= ~near
-        scored = []
-        max_weight = max((w for _, w in candidates), default=0.0)
-        for cand, weight in candidates:
-            _, ratio, z_best = elevation(cand)
-            if weight >= 0.25 * max_weight:
-                # A candidate is the mean of the images' strongest lines; a road can hide the
-                # line beside it a few degrees away. Take a nearby direction instead when it
-                # is clearly more elevated.
-                near = [
-                    ((cand + d) % 180.0, *elevation((cand + d) % 180.0)[1:])
-                    for d in options.refine_offsets_deg
-                ]
-                az_n, r_n, z_n = max(near, key=lambda t: t[1])
-                if r_n > options.refine_gain * max(ratio, 1e-9) and r_n > options.refine_min_ratio:
-                    cand, ratio, z_best = az_n, r_n, z_n
-            scored.append((cand, weight, ratio, z_best))
-        logger.info(
-            "wire direction candidates (azimuth, weight, elevated/ground agreement, height "
-            "above ground): %s",
-            [
-                (round(a, 1), round(w, 1), round(r, 2), round(z - ground_z, 1))
-                for a, w, r, z in scored
-            ],
+    if not cands:
+        raise InputError(
+            f"{scene.image_path}: no long straight line found in the images; "
+            "give the wires' direction with --pairs.wire_azimuth_deg"
         )
-        elevated = [c for c in scored if c[2] > options.min_elevated_ratio]
-        if not scored:
-            raise InputError(
-                f"{scene.image_path}: no wire direction found in the images; "
-                "give it with --wire_azimuth_deg"
-            )
-        if not elevated:
-            logger.warning(
-                "no line direction looks elevated above the ground; using the "
-                "strongest one (give --wire_azimuth_deg if it is not the wires)"
-            )
-        # The most clearly elevated direction; with none, the strongest one.
-        azimuth, _, _, height = (
-            max(elevated, key=lambda c: c[2]) if elevated else max(scored, key=lambda c: c[1])
-        )
-    samples = planes(line_pixels(azimuth), height)
+    logger.info(
+        "line directions seen by several images (azimuth, weight): %s",
+        [(round(a, 1), round(w, 1)) for a, w in cands],
+    )
+    return DirectionCandidates(
+        tuple(a for a, _ in cands),
+        tuple(w for _, w in cands),
+        tuple(analysed),
+        ground_z,
+        flying,
+    )
+
+
+def _along_extent(scene: Scene, centre: F64, direction: F64, z: float, s_guess: F64) -> F64:
+    """The stretch along the line (from ``centre``) that at least two images see at ``z``."""
+    s_all = np.arange(s_guess.min() - 200.0, s_guess.max() + 200.0, 1.0)
+    probe = np.c_[centre + s_all[:, None] * direction, np.full(len(s_all), z)]
+    seen = np.sum([v.project(probe)[2] for v in scene.images], axis=0)
+    if (seen >= 2).any():
+        return np.array([s_all[seen >= 2].min(), s_all[seen >= 2].max()])
+    return np.quantile(s_guess, [0.01, 0.99])
+
+
+def provisional_corridor(
+    scene: Scene,
+    candidates: DirectionCandidates,
+    azimuth: float,
+    options: PairsOptions,
+    wire_heights: tuple[float, float],
+) -> WireCorridor:
+    """The band where the lines of one direction run, before anything is measured in 3D.
+
+    The line pixels of the analysed images are put on a plane halfway up the plausible wire
+    heights; the densest band across the direction is taken, with a wide margin and the
+    whole range of heights (it only has to find a few pairs that see the wires).
+
+    Args:
+        wire_heights: the lowest and highest a wire may hang above the ground.
+    """
+    lo_h = wire_heights[0]
+    hi_h = min(wire_heights[1], 0.8 * candidates.flying_height)
+    z = candidates.ground_z + 0.5 * (lo_h + hi_h)
+    # The pairs only have to see the wires' usual heights, not the extremes.
+    band = (lo_h + 0.25 * (hi_h - lo_h), lo_h + 0.6 * (hi_h - lo_h))
+    xy = np.concatenate(
+        [
+            _to_plane(v, _line_pixels(v, g, f, _image_angle(v, azimuth, z), options), z)
+            for v, g, f in candidates.analysed
+        ]
+    )
     az = np.deg2rad(azimuth)
     direction, normal = np.array([np.sin(az), np.cos(az)]), np.array([np.cos(az), -np.sin(az)])
-    xy = np.concatenate(samples)
-    c = xy @ normal
-    s = xy @ direction
-    # The wires are the densest band of line pixels across the line direction.
+    c, s = xy @ normal, xy @ direction
     bins = np.arange(c.min() - 1, c.max() + 2, 1.0)
     hist, _ = np.histogram(c, bins)
     hist = np.convolve(hist, np.ones(5) / 5, mode="same")
@@ -368,37 +357,83 @@ def estimate_corridor(scene: Scene, options: PairsOptions | None = None) -> Wire
     while hi < len(hist) - 1 and hist[hi + 1] > 0.2 * hist[peak]:
         hi += 1
     c_lo, c_hi = bins[lo], bins[hi + 1]
-    # Along the line the wires may run through every image: take the whole stretch that
-    # at least two images see (line pixels alone undercount it where wires are faint).
-    c_band = 0.5 * (c_lo + c_hi)
-    s_all = np.arange(s.min() - 200.0, s.max() + 200.0, 1.0)
-    probe = np.c_[c_band * normal + s_all[:, None] * direction, np.full(len(s_all), height)]
-    seen = np.sum([v.project(probe)[2] for v in scene.images], axis=0)
-    if (seen >= 2).any():
-        s_lo, s_hi = s_all[seen >= 2].min(), s_all[seen >= 2].max()
-    else:
-        s_lo, s_hi = np.quantile(s[(c >= c_lo) & (c <= c_hi)], [0.01, 0.99])
-    c_mid, s_mid = 0.5 * (c_lo + c_hi), 0.5 * (s_lo + s_hi)
+    c_mid = 0.5 * (c_lo + c_hi)
+    s_lo, s_hi = _along_extent(scene, c_mid * normal, direction, z, s)
+    s_mid = 0.5 * (s_lo + s_hi)
+    return WireCorridor(
+        azimuth_deg=azimuth,
+        centre_xy=c_mid * normal + s_mid * direction,
+        half_width=0.5 * (c_hi - c_lo) + options.corridor_margin,
+        wires_half_width=0.5 * (c_hi - c_lo),
+        s_range=(float(s_lo - s_mid), float(s_hi - s_mid)),
+        height=z,
+        height_range=(candidates.ground_z + band[0], candidates.ground_z + band[1]),
+        from_images=options.wire_azimuth_deg is None,
+        measured=False,
+        decoded=candidates.decoded,
+    )
+
+
+def corridor_from_points(
+    scene: Scene,
+    pts_in_world: F64,
+    options: PairsOptions,
+    from_images: bool,
+    provisional: WireCorridor,
+    decoded: tuple[Path, ...] = (),
+) -> WireCorridor:
+    """The corridor where wires were measured: their direction, band and heights.
+
+    A probe sees some of the wires — those that its pairs see, often the lowest — so the
+    heights keep the provisional range as well as the measured one.
+
+    Args:
+        pts_in_world: (N, 3) verified points on wires (a probe of a few pairs).
+        provisional: the corridor the probe was chosen for.
+    """
+    from .wires import estimate_azimuth  # noqa: PLC0415 (a later stage's geometry helper)
+
+    azimuth = estimate_azimuth(pts_in_world)
+    az = np.deg2rad(azimuth)
+    direction, normal = np.array([np.sin(az), np.cos(az)]), np.array([np.cos(az), -np.sin(az)])
+    c, s = pts_in_world[:, :2] @ normal, pts_in_world[:, :2] @ direction
+    z = pts_in_world[:, 2]
+    c_lo, c_hi = np.quantile(c, [0.01, 0.99])
+    z_lo, z_hi = np.quantile(z, [0.02, 0.98])
+    c_mid = 0.5 * (c_lo + c_hi)
+    z_mid = float(np.median(z))
+    s_lo, s_hi = _along_extent(scene, c_mid * normal, direction, z_mid, s)
+    s_mid = 0.5 * (s_lo + s_hi)
     corridor = WireCorridor(
         azimuth_deg=azimuth,
         centre_xy=c_mid * normal + s_mid * direction,
         half_width=0.5 * (c_hi - c_lo) + options.corridor_margin,
         wires_half_width=0.5 * (c_hi - c_lo),
         s_range=(float(s_lo - s_mid), float(s_hi - s_mid)),
-        height=height,
-        from_images=options.wire_azimuth_deg is None,
-        decoded=tuple(v.path for v in views),
+        height=z_mid,
+        height_range=(
+            float(min(z_lo, provisional.height_range[0])),
+            float(max(z_hi, provisional.height_range[1])),
+        ),
+        from_images=from_images,
+        measured=True,
+        decoded=decoded,
     )
+    ground = float(np.median(scene.ground_height(pts_in_world[:, :2])))
     logger.info(
-        "wire corridor: azimuth %.1f° (%s), %.0f wide, %.0f long, wires about %.0f above "
-        "the ground",
+        "wire corridor (measured): azimuth %.1f°, %.0f wide, %.0f long, wires measured "
+        "%.0f–%.0f above the ground",
         azimuth,
-        "estimated" if corridor.from_images else "given",
         2 * corridor.half_width,
         s_hi - s_lo,
-        height - ground_z,
+        z_lo - ground,
+        z_hi - ground,
     )
     return corridor
+
+
+# A stretch of the corridor that no third view can judge counts this much in a pair's score.
+WEAK_COVERAGE_WEIGHT = 0.1
 
 
 def select_pairs(
@@ -415,33 +450,39 @@ def select_pairs(
     false matches there.
     """
     options = options or PairsOptions()
-    line = corridor.sample_points(1.0)
-    seen = np.zeros((len(scene.images), len(line)), bool)
+    samples = corridor.sample_points(1.0)  # (2, N, 3): lowest and highest wire heights
+    n_samples = samples.shape[1]
+    # The share of the wire heights (lowest, highest) at which each image sees each place.
+    seen = np.zeros((len(scene.images), n_samples))
     m = options.border_margin_frac
     for i, view in enumerate(scene.images):
-        uv, _, inside = view.project(line)
-        with np.errstate(invalid="ignore"):
-            seen[i] = inside & (
-                (uv[:, 0] > m * view.width)
-                & (uv[:, 0] < (1 - m) * view.width)
-                & (uv[:, 1] > m * view.height)
-                & (uv[:, 1] < (1 - m) * view.height)
-            )
+        for level in samples:
+            uv, _, inside = view.project(level)
+            with np.errstate(invalid="ignore"):
+                seen[i] += (
+                    inside
+                    & (uv[:, 0] > m * view.width)
+                    & (uv[:, 0] < (1 - m) * view.width)
+                    & (uv[:, 1] > m * view.height)
+                    & (uv[:, 1] < (1 - m) * view.height)
+                ) / len(samples)
     centres = scene.centers_in_world
     ground = scene.ground_height(centres[:, :2])
     direction = corridor.direction_xy
-    height = float(np.median(centres[:, 2]) - corridor.height)
-    candidates: list[tuple[ImagePair, npt.NDArray[np.bool_]]] = []
+    above_wires = float(np.median(centres[:, 2]) - corridor.height)  # cameras above the wires
+    candidates: list[tuple[ImagePair, F64]] = []
     best_crossing = 0.0
     for i in range(len(scene.images)):
         for j in range(i + 1, len(scene.images)):
-            common = seen[i] & seen[j]
-            if common.sum() < 2:
+            common = np.minimum(seen[i], seen[j])
+            if (common > 0).sum() < 2:
                 continue
             judges = crossing_views(
-                centres, centres[[i, j]][None], corridor.azimuth_deg, height, crossing_offset
+                centres, centres[[i, j]][None], corridor.azimuth_deg, above_wires, crossing_offset
             )[0]
-            common &= seen[judges].any(axis=0)
+            # Where a third view offset across the wires sees it too, false matches can be
+            # rejected point by point; elsewhere only whole wires can be judged.
+            judged = np.minimum(common, seen[judges].max(axis=0, initial=0.0))
             base = centres[j] - centres[i]
             b_xy = float(np.linalg.norm(base[:2]))
             if b_xy < 1e-9:
@@ -449,18 +490,22 @@ def select_pairs(
             cos_angle = abs(float(base[:2] @ direction)) / b_xy
             crossing = float(np.rad2deg(np.arccos(np.clip(cos_angle, 0, 1))))
             best_crossing = max(best_crossing, crossing)
-            height = float(np.mean(centres[[i, j], 2] - ground[[i, j]]))
-            bh = float(np.linalg.norm(base)) / max(height, 1e-9)
+            above_ground = float(np.mean(centres[[i, j], 2] - ground[[i, j]]))
+            bh = float(np.linalg.norm(base)) / max(above_ground, 1e-9)
             if crossing < options.min_crossing_deg:
                 continue
             if not options.min_base_height <= bh <= options.max_base_height:
                 continue
             coverage = float(common.sum()) / 5.0  # five sample lines
+            weight = judged + WEAK_COVERAGE_WEIGHT * (common - judged)
             score = (
-                coverage * np.sin(np.deg2rad(crossing)) * min(bh / options.target_base_height, 1.0)
+                float(weight.sum())
+                / 5.0
+                * np.sin(np.deg2rad(crossing))
+                * min(bh / options.target_base_height, 1.0)
             )
             pair = ImagePair(scene.images[i], scene.images[j], crossing, bh, coverage, score)
-            candidates.append((pair, common))
+            candidates.append((pair, weight))
     if not candidates:
         raise InputError(
             f"{scene.model_path}: no image pair crosses the wires (best crossing angle "
@@ -468,7 +513,7 @@ def select_pairs(
             f"[{options.min_base_height}, {options.max_base_height}]); the flight needs images "
             "side by side across the line (a second strip, or strips across the line)"
         )
-    count = np.zeros(len(line))
+    count = np.zeros(n_samples)
     chosen: list[ImagePair] = []
     while len(chosen) < options.max_pairs:
         # First cover every part of the corridor once, then add redundancy.

@@ -26,17 +26,27 @@ from .errors import InputError
 from .export import export_results, wire_colors
 from .georef import Georeference, crs_converter, crs_wkt, read_georeference
 from .las import CONDUCTOR, WIRE_CLASS, write_las
-from .pairs import ImagePair, PairsOptions, WireCorridor, estimate_corridor, select_pairs
+from .pairs import (
+    ImagePair,
+    PairsOptions,
+    WireCorridor,
+    corridor_from_points,
+    direction_candidates,
+    provisional_corridor,
+    select_pairs,
+)
 from .rectify import RectifiedPair, RectifyOptions, rectify_pair
 from .report import write_report
 from .scene import Scene, SceneImage, load_scene, read_image, resolve_inputs
 from .sfm import SfmOptions, run_sfm
 from .support import SupportOptions, WireSupport, keep_supported, wire_support
 from .triangulate import Primitives, TriangulateOptions, triangulate_pair, wire_centres
-from .verify import VerifiedPoints, VerifyOptions, verify_primitives
+from .verify import VerifiedPoints, VerifyOptions, WireMaskFn, verify_primitives
 from .wires import FittedWire, WiresOptions, split_wires
 
 logger = logging.getLogger(__name__)
+
+F64 = npt.NDArray[np.float64]
 
 
 @dataclass(kw_only=True)
@@ -100,6 +110,97 @@ def _detect_rectified(
     border = options.template_length_px + 4
     valid = cv2.erode(valid.astype(np.uint8), np.ones((border, border), np.uint8)).astype(bool)
     return wire_centres(wm.mask & valid, wm.response), int(wm.mask.sum())
+
+
+def crop_wire_mask(options: DetectOptions) -> WireMaskFn:
+    """The detector verification calls on each view: only the crop where primitives land is
+    searched; the length filter stays scaled to the whole image."""
+
+    def wire_mask(
+        view: SceneImage, image: np.ndarray, direction: float, crop: tuple[int, int, int, int]
+    ) -> WireMask:
+        x0, y0, x1, y1 = crop
+        crop_options = dataclasses.replace(
+            options, min_component_length_px=options.min_length_px(view.width)
+        )
+        return detect_wires(image[y0:y1, x0:x1], direction, crop_options)
+
+    return wire_mask
+
+
+def probe_corridor(scene: Scene, options: ReconstructionOptions) -> WireCorridor:
+    """Find where the wires are by measuring them: a few pairs per candidate direction.
+
+    Long image lines run along the wires, but also along roads, field rows and shadows. For
+    each of the strongest candidate directions, two pairs crossing it are triangulated and
+    verified in the views around them; the direction whose points form the most wire length
+    is the line, and its points give the corridor's band and heights (so that pairs are
+    then chosen where the wires really are, at the heights they really hang).
+    """
+    cands = direction_candidates(scene, options.pairs)
+    decoded = list(cands.decoded)
+    heights = (options.triangulate.min_wire_height, options.triangulate.max_wire_height)
+    quiet = dataclasses.replace(options, show_progress=False)
+    probe_options = dataclasses.replace(options.pairs, max_pairs=options.pairs.probe_pairs)
+    best: tuple[float, WireCorridor, F64] | None = None
+    order = np.argsort(cands.weights)[::-1][: options.pairs.probe_candidates]
+    for k in order:
+        azimuth = cands.azimuths_deg[k]
+        prov = provisional_corridor(scene, cands, azimuth, options.pairs, heights)
+        try:
+            pairs = select_pairs(scene, prov, probe_options, options.verify.crossing_offset)
+        except InputError as e:
+            logger.info("probe %.1f°: %s", azimuth, e)
+            continue
+        prims, n = primitives_for_pairs(scene, pairs, prov, quiet)
+        decoded += n
+        if sum(len(p) for p in prims) == 0:
+            continue
+        # The views around the pairs are enough to tell wires from other lines.
+        mid = np.mean([[p.left.center_in_world, p.right.center_in_world] for p in pairs], (0, 1))
+        near = np.argsort(np.linalg.norm(scene.centers_in_world[:, :2] - mid[:2], axis=1))
+        views = tuple(scene.images[i] for i in sorted(near[: options.pairs.probe_views]))
+        verified = verify_primitives(
+            dataclasses.replace(scene, images=views),
+            prims,
+            [(p.left.name, p.right.name) for p in pairs],
+            crop_wire_mask(options.detect),
+            azimuth,
+            options.verify,
+            show_progress=False,
+        )
+        decoded += verified.decoded
+        wires = split_wires(verified.pts_in_world, azimuth, options.wires)
+        length = float(sum(w.s_range[1] - w.s_range[0] for w in wires))
+        logger.info(
+            "probe %.1f°: %d pairs, %d verified points, %d wires, %.0f m of wire",
+            azimuth,
+            len(pairs),
+            len(verified),
+            len(wires),
+            length,
+        )
+        if wires and (best is None or length > best[0]):
+            idx = np.concatenate([w.point_indices for w in wires])
+            best = (length, prov, verified.pts_in_world[idx])
+    if best is None:
+        azimuth = cands.azimuths_deg[int(np.argmax(cands.weights))]
+        logger.warning(
+            "no candidate direction gave wires in a probe; using the strongest line direction "
+            "%.1f° with an unmeasured corridor (give --pairs.wire_azimuth_deg if it is not "
+            "the wires)",
+            azimuth,
+        )
+        prov = provisional_corridor(scene, cands, azimuth, options.pairs, heights)
+        return dataclasses.replace(prov, decoded=tuple(decoded))
+    return corridor_from_points(
+        scene,
+        best[2],
+        options.pairs,
+        options.pairs.wire_azimuth_deg is None,
+        best[1],
+        tuple(decoded),
+    )
 
 
 def primitives_for_pairs(
@@ -174,7 +275,7 @@ def reconstruct(
     timings["scene"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    corridor = estimate_corridor(scene, options.pairs)
+    corridor = probe_corridor(scene, options)
     pairs = select_pairs(scene, corridor, options.pairs, options.verify.crossing_offset)
     timings["pairs"] = time.perf_counter() - t0
     decoded = list(corridor.decoded)
@@ -188,22 +289,11 @@ def reconstruct(
 
     t0 = time.perf_counter()
 
-    def wire_mask(
-        view: SceneImage, image: np.ndarray, direction: float, crop: tuple[int, int, int, int]
-    ) -> WireMask:
-        # Only the crop where primitives land is searched; the length filter stays scaled
-        # to the whole image.
-        x0, y0, x1, y1 = crop
-        crop_options = dataclasses.replace(
-            options.detect, min_component_length_px=options.detect.min_length_px(view.width)
-        )
-        return detect_wires(image[y0:y1, x0:x1], direction, crop_options)
-
     verified = verify_primitives(
         scene,
         primitives,
         [(p.left.name, p.right.name) for p in pairs],
-        wire_mask,
+        crop_wire_mask(options.detect),
         corridor.azimuth_deg,
         options.verify,
         options.show_progress,
@@ -224,11 +314,14 @@ def reconstruct(
         verified.wire_pixels,
         verified.pair_index,
         pair_centres,
+        verified.view_hit_rates,
         options.verify.crossing_offset,
         options.verify.tolerance_px,
         options.support,
     )
-    kept, supports = keep_supported(candidates, supports, options.support)
+    kept, supports = keep_supported(
+        candidates, supports, options.support, options.triangulate.min_wire_height
+    )
     wires = [dataclasses.replace(w, wire_id=i) for i, w in enumerate(kept)]
     supports = [dataclasses.replace(s, wire_id=i) for i, s in enumerate(supports)]
     labels = np.full(len(verified), -1, np.int64)

@@ -45,6 +45,9 @@ class SupportOptions:
     min_projected_px: float = 30.0  # a view counts for a wire when this much of it lies in
     # the region that view searched
     min_pair_share: float = 0.2  # pairs that gave this share of a wire's points produced it
+    weak_min_hit_share: float = 0.8  # on weak geometry, a wire must lie on wire pixels at
+    # least this share as often as the views see true wires (a false pairing lands on
+    # wires only in the views along one of its cameras, and not where the wires slope)
 
     def __post_init__(self) -> None:
         if not 0.5 <= self.min_confidence < 1:
@@ -55,6 +58,8 @@ class SupportOptions:
             raise ValueError(f"{self.min_projected_px=} but expected ≥ 1 px")
         if not 0 < self.min_pair_share <= 1:
             raise ValueError(f"{self.min_pair_share=} but expected in (0, 1]")
+        if not 0 <= self.weak_min_hit_share <= 1:
+            raise ValueError(f"{self.weak_min_hit_share=} but expected in [0, 1]")
 
 
 @dataclass(frozen=True)
@@ -73,6 +78,7 @@ class WireSupport:
     # that no better supported wire explains (None: there are none)
     geometry: str  # "strong": crossing views confirm it; "weak": no view can tell it from a
     # false pairing (the confidence then comes from the other views)
+    height_above_ground: float  # median height of the wire above the ground surface
     advice: str | None = None  # what to fly to make weak geometry strong
 
     def to_json(self) -> dict[str, Any]:
@@ -184,6 +190,7 @@ def wire_support(
     wire_pixels: Sequence[ViewWirePixels],
     point_pair: npt.NDArray[np.int32],
     pair_centres: F64,
+    view_hit_rates: F64,
     crossing_offset: float,
     tolerance_px: float,
     options: SupportOptions | None = None,
@@ -202,6 +209,7 @@ def wire_support(
         point_pair: (N,) the pair that produced each verified point (``wire.point_indices``
             index it).
         pair_centres: (P, 2, 3) the camera centres of each pair.
+        view_hit_rates: (V,) how often each view lands on true wire points (NaN: unknown).
         crossing_offset: a view can tell when it is offset across the wire from both cameras
             of a pair by this share of its height above the wire.
         tolerance_px: how close to a wire pixel a projection counts as on it.
@@ -236,12 +244,16 @@ def wire_support(
         strength = sum(0.5 * len(m.uv) * (m.hit.mean() - m.control.mean()) for m in ms)
         measured.append((ms, cross, groups, height, strength))
 
+    finite = view_hit_rates[np.isfinite(view_hit_rates)]
+    typical_rate = float(np.median(finite)) if len(finite) else 0.7
     accepted: dict[int, list[_ViewMeasure]] = {}
     radius = 2 * tolerance_px + 1
     out: list[WireSupport | None] = [None] * len(wires)
     for k in sorted(range(len(wires)), key=lambda k: -measured[k][4]):
         wire = wires[k]
         ms, cross, groups, height, _ = measured[k]
+        poly = wire.polyline(1.0)
+        poly_xy, poly_z = poly[:, :2], poly[:, 2]
         rows = np.array(
             [m.share(~_explained(m, accepted.get(m.view_index, []), radius)) for m in ms]
         ).reshape(-1, 3)
@@ -256,6 +268,15 @@ def wire_support(
         if use.any():
             llr = _evidence(length[use], hit[use], chance[use], options.correlation_length_px)
             confidence = float(1 / (1 + np.exp(-min(llr, 50.0))))
+            if not strong:
+                # Views along the wires confirm false pairings too, except where the wires
+                # slope: a real wire lands on wire pixels as often as the views see wires.
+                rate = np.array([view_hit_rates[m.view_index] for m in ms])[use]
+                rate = np.where(np.isfinite(rate), rate, typical_rate)
+                expected = float(np.average(rate, weights=length[use]))
+                observed = float(np.average(hit[use], weights=length[use]))
+                if observed < options.weak_min_hit_share * expected:
+                    confidence = min(confidence, 0.5)
         if confidence is not None and confidence >= options.min_confidence:
             for m in ms:
                 accepted.setdefault(m.view_index, []).append(m)
@@ -268,10 +289,13 @@ def wire_support(
             strips=len(groups),
             crossing_views=int(cross.sum()),
             hit_rate=float(np.average(all_hit, weights=all_len)) if ms else 0.0,
-            crossing_hit_rate=float(np.average(hit[use], weights=length[use])) if strong else None,
+            crossing_hit_rate=float(np.average(hit[use], weights=length[use]))
+            if strong and use.any()
+            else None,
             chance=float(np.average(all_chance, weights=all_len)) if ms else 0.0,
             confidence=confidence,
             geometry="strong" if strong else "weak",
+            height_above_ground=float(np.median(poly_z - scene.ground_height(poly_xy))),
             advice=None
             if strong or not groups
             else _advice(wire, groups, crossing_offset * height),
@@ -280,11 +304,24 @@ def wire_support(
 
 
 def keep_supported(
-    wires: Sequence[FittedWire], supports: Sequence[WireSupport], options: SupportOptions
+    wires: Sequence[FittedWire],
+    supports: Sequence[WireSupport],
+    options: SupportOptions,
+    min_height: float,
 ) -> tuple[list[FittedWire], list[WireSupport]]:
-    """Drop the wires that the views able to tell reject; warn about weak geometry."""
+    """Drop the wires that the views able to tell reject and the lines on the ground (median
+    height above it below ``min_height``); warn about weak geometry."""
     kept, kept_support = [], []
     for w, s in zip(wires, supports, strict=True):
+        if s.height_above_ground < min_height:
+            logger.info(
+                "support: wire %d dropped (%.0f m): %.1f above the ground — a line on the "
+                "ground (road edge, shadow, field row), not a wire",
+                w.wire_id,
+                w.s_range[1] - w.s_range[0],
+                s.height_above_ground,
+            )
+            continue
         if s.confidence is None or s.confidence < options.min_confidence:
             logger.info(
                 "support: wire %d dropped (%.0f m): confidence %s, on wires %.0f %% of its "

@@ -23,9 +23,16 @@ F64 = npt.NDArray[np.float64]
 I64 = npt.NDArray[np.int64]
 
 
+# Matching searches down to this far below the ground interpolated from the sparse points.
+GROUND_SEARCH_BELOW = 2.0
+
+
 @dataclass(kw_only=True)
 class TriangulateOptions:
-    min_wire_height: float = 3.0  # lowest wire above the ground (model units)
+    min_wire_height: float = 5.0  # lowest wire above the ground (model units; overhead
+    # lines keep at least 5–6 m over ground by regulation, tower bracing is lower); the search
+    # starts from the ground itself, so that lines on it (road edges, shadows, field rows)
+    # triangulate where they are and are then recognised as ground, not wires
     max_wire_height: float = 60.0  # highest wire above the ground (model units)
     same_polarity: bool = True  # match bright with bright and dark with dark only
     max_primitives: int = 20_000_000  # a pair with more candidates than this is skipped
@@ -121,7 +128,7 @@ def triangulate_pair(
         return empty
     uv_left = np.c_[left.u, left.rows + 0.5]
     # Depth bounds per left centre: far = lowest wire above ground, near = highest wire.
-    far = _ground_depth(pair, scene, uv_left, options.min_wire_height)
+    far = _ground_depth(pair, scene, uv_left, -GROUND_SEARCH_BELOW)
     near = _ground_depth(pair, scene, uv_left, options.max_wire_height)
     offset = pair.column_offset_px
     # Clipped to the row: the keys below stack the rows, so an unclipped range would run

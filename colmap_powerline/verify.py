@@ -395,11 +395,17 @@ def verify_primitives(
     prior_logit = np.log(prior) - np.log1p(-np.minimum(prior, 1 - 1e-9))
     hit_rate = np.full(len(scene.images), options.prior_hit_rate)
 
+    # Where no view can tell (only two strips see the wires), the views along the wires
+    # still tell wire points from texture and, where the wires slope towards their supports,
+    # from false pairings; whole wires are judged afterwards (support).
+    weak = n_crossing == 0
+
     def posterior() -> F64:
         evidence = np.zeros(len(pts))
         for v, idx, hit, chance, cross in observations:
-            llr = _log_likelihood_ratio(hit[cross], chance[cross], hit_rate[v])
-            np.add.at(evidence, idx[cross], llr)
+            use = cross | weak[idx]
+            llr = _log_likelihood_ratio(hit[use], chance[use], hit_rate[v])
+            np.add.at(evidence, idx[use], llr)
         return 1.0 / (1.0 + np.exp(-np.clip(prior_logit + evidence, -50, 50)))
 
     # Each view's hit rate on true points, from the points the other views confirm.
