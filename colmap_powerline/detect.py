@@ -106,11 +106,13 @@ def line_response(gray: F32, direction_deg: float, options: DetectOptions | None
     options = options or DetectOptions()
     a = direction_deg % 180.0
     o, n = options.side_offset_px, options.template_length_px
-    if abs(a - 90.0) < 1e-6:  # vertical: separable
-        across = 2 * gray - np.roll(gray, o, axis=1) - np.roll(gray, -o, axis=1)
+    if abs(a - 90.0) < 1e-6:  # vertical: separable (edges replicated, never wrapped round)
+        pad = np.pad(gray, ((0, 0), (o, o)), mode="edge")
+        across = 2 * gray - pad[:, : -2 * o] - pad[:, 2 * o :]
         return cv2.blur(across, (1, n), borderType=cv2.BORDER_REPLICATE)
     if a < 1e-6 or abs(a - 180.0) < 1e-6:  # horizontal: separable
-        across = 2 * gray - np.roll(gray, o, axis=0) - np.roll(gray, -o, axis=0)
+        pad = np.pad(gray, ((o, o), (0, 0)), mode="edge")
+        across = 2 * gray - pad[: -2 * o] - pad[2 * o :]
         return cv2.blur(across, (n, 1), borderType=cv2.BORDER_REPLICATE)
     kernel = line_kernel(a, n, o)
     return cv2.filter2D(gray, cv2.CV_32F, kernel, borderType=cv2.BORDER_REPLICATE)

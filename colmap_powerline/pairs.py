@@ -33,9 +33,10 @@ class PairsOptions:
     candidate_tolerance_deg: float = 2.5  # image directions this close form one candidate
     # (a road and the line beside it may differ by only a few degrees)
     max_candidates: int = 5  # candidate directions found in the images
-    probe_candidates: int = 3  # of those, the strongest this many are probed in 3D
+    probe_candidates: int = 5  # of those, the strongest this many are probed in 3D (wires
+    # are thin: their image lines are often weaker than a road's or a field's)
     probe_pairs: int = 2  # pairs triangulated and verified to probe a direction
-    probe_views: int = 14  # the views nearest those pairs that verify the probe
+    probe_views: int = 10  # the views nearest those pairs that verify the probe
     num_direction_images: int = 6  # images used to estimate the direction and corridor
     analysis_width_px: int = 800  # those images are analysed at about this width
     scan_step_deg: float = 3.0  # orientation scan step
@@ -144,6 +145,9 @@ def _image_directions(
     """The strongest thin-line directions of an image (degrees, 0 = +x, 90 = down), each with
     its contrast against the median direction, strongest first."""
     length = max(int(options.template_length_frac * gray.shape[1]), 9)
+    # Rotating by anything but a right angle interpolates, which smooths: smooth every
+    # direction alike first, or the image axes stand out on plain texture.
+    gray = cv2.GaussianBlur(gray, (0, 0), 0.7)
     angles = np.arange(0.0, 180.0, options.scan_step_deg)
     energy = np.array([_line_energy(gray, a, length) for a in angles])
     median = max(float(np.median(energy)), 1e-9)

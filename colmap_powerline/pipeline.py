@@ -128,6 +128,12 @@ def crop_wire_mask(options: DetectOptions) -> WireMaskFn:
     return wire_mask
 
 
+def _height_above_ground(scene: Scene, wire: FittedWire) -> float:
+    """Median height of a fitted wire above the ground of the sparse points."""
+    poly = wire.polyline(1.0)
+    return float(np.median(poly[:, 2] - scene.ground_height(poly[:, :2])))
+
+
 def probe_corridor(scene: Scene, options: ReconstructionOptions) -> WireCorridor:
     """Find where the wires are by measuring them: a few pairs per candidate direction.
 
@@ -159,7 +165,9 @@ def probe_corridor(scene: Scene, options: ReconstructionOptions) -> WireCorridor
         # The views around the pairs are enough to tell wires from other lines.
         mid = np.mean([[p.left.center_in_world, p.right.center_in_world] for p in pairs], (0, 1))
         near = np.argsort(np.linalg.norm(scene.centers_in_world[:, :2] - mid[:2], axis=1))
-        views = tuple(scene.images[i] for i in sorted(near[: options.pairs.probe_views]))
+        keep = set(near[: options.pairs.probe_views].tolist())
+        keep |= {scene.images.index(v) for p in pairs for v in (p.left, p.right)}
+        views = tuple(scene.images[i] for i in sorted(keep))
         verified = verify_primitives(
             dataclasses.replace(scene, images=views),
             prims,
@@ -170,7 +178,11 @@ def probe_corridor(scene: Scene, options: ReconstructionOptions) -> WireCorridor
             show_progress=False,
         )
         decoded += verified.decoded
-        wires = split_wires(verified.pts_in_world, azimuth, options.wires)
+        wires = [
+            w
+            for w in split_wires(verified.pts_in_world, azimuth, options.wires)
+            if _height_above_ground(scene, w) >= options.triangulate.min_wire_height
+        ]  # lines on the ground (roads, rows, shadows) triangulate too: they are not wires
         length = float(sum(w.s_range[1] - w.s_range[0] for w in wires))
         logger.info(
             "probe %.1f°: %d pairs, %d verified points, %d wires, %.0f m of wire",
