@@ -381,6 +381,7 @@ def provisional_corridor(
 def corridor_from_points(
     scene: Scene,
     pts_in_world: F64,
+    azimuth: float,
     options: PairsOptions,
     from_images: bool,
     provisional: WireCorridor,
@@ -393,11 +394,9 @@ def corridor_from_points(
 
     Args:
         pts_in_world: (N, 3) verified points on wires (a probe of a few pairs).
+        azimuth: the wires' direction measured from them (degrees clockwise from +y).
         provisional: the corridor the probe was chosen for.
     """
-    from .wires import estimate_azimuth  # noqa: PLC0415 (a later stage's geometry helper)
-
-    azimuth = estimate_azimuth(pts_in_world)
     az = np.deg2rad(azimuth)
     direction, normal = np.array([np.sin(az), np.cos(az)]), np.array([np.cos(az), -np.sin(az)])
     c, s = pts_in_world[:, :2] @ normal, pts_in_world[:, :2] @ direction

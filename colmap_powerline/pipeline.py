@@ -148,7 +148,7 @@ def probe_corridor(scene: Scene, options: ReconstructionOptions) -> WireCorridor
     heights = (options.triangulate.min_wire_height, options.triangulate.max_wire_height)
     quiet = dataclasses.replace(options, show_progress=False)
     probe_options = dataclasses.replace(options.pairs, max_pairs=options.pairs.probe_pairs)
-    best: tuple[float, WireCorridor, F64] | None = None
+    best: tuple[float, WireCorridor, F64, float] | None = None
     order = np.argsort(cands.weights)[::-1][: options.pairs.probe_candidates]
     for k in order:
         azimuth = cands.azimuths_deg[k]
@@ -194,7 +194,14 @@ def probe_corridor(scene: Scene, options: ReconstructionOptions) -> WireCorridor
         )
         if wires and (best is None or length > best[0]):
             idx = np.concatenate([w.point_indices for w in wires])
-            best = (length, prov, verified.pts_in_world[idx])
+            # The direction of the wires' own planes, weighted by their length (the points'
+            # spread is not: parallel wires widen it across the line).
+            doubled = np.array([2 * np.arctan2(*w.plane_direction_xy) for w in wires])
+            weight = np.array([w.s_range[1] - w.s_range[0] for w in wires])
+            measured = np.rad2deg(
+                np.arctan2((weight * np.sin(doubled)).sum(), (weight * np.cos(doubled)).sum()) / 2
+            )
+            best = (length, prov, verified.pts_in_world[idx], float(measured % 180.0))
     if best is None:
         azimuth = cands.azimuths_deg[int(np.argmax(cands.weights))]
         logger.warning(
@@ -208,6 +215,7 @@ def probe_corridor(scene: Scene, options: ReconstructionOptions) -> WireCorridor
     return corridor_from_points(
         scene,
         best[2],
+        best[3] if options.pairs.wire_azimuth_deg is None else best[1].azimuth_deg,
         options.pairs,
         options.pairs.wire_azimuth_deg is None,
         best[1],

@@ -45,9 +45,9 @@ class SupportOptions:
     min_projected_px: float = 30.0  # a view counts for a wire when this much of it lies in
     # the region that view searched
     min_pair_share: float = 0.2  # pairs that gave this share of a wire's points produced it
-    weak_min_hit_share: float = 0.8  # on weak geometry, a wire must lie on wire pixels at
-    # least this share as often as the views see true wires (a false pairing lands on
-    # wires only in the views along one of its cameras, and not where the wires slope)
+    min_hit_share: float = 0.8  # over all views, a wire must lie on wire pixels at least
+    # this share as often as the views see true wires (a false pairing lands on wires only
+    # in the views along one of its cameras, and not where the wires slope)
 
     def __post_init__(self) -> None:
         if not 0.5 <= self.min_confidence < 1:
@@ -58,8 +58,8 @@ class SupportOptions:
             raise ValueError(f"{self.min_projected_px=} but expected ≥ 1 px")
         if not 0 < self.min_pair_share <= 1:
             raise ValueError(f"{self.min_pair_share=} but expected in (0, 1]")
-        if not 0 <= self.weak_min_hit_share <= 1:
-            raise ValueError(f"{self.weak_min_hit_share=} but expected in [0, 1]")
+        if not 0 <= self.min_hit_share <= 1:
+            raise ValueError(f"{self.min_hit_share=} but expected in [0, 1]")
 
 
 @dataclass(frozen=True)
@@ -268,15 +268,16 @@ def wire_support(
         if use.any():
             llr = _evidence(length[use], hit[use], chance[use], options.correlation_length_px)
             confidence = float(1 / (1 + np.exp(-min(llr, 50.0))))
-            if not strong:
-                # Views along the wires confirm false pairings too, except where the wires
-                # slope: a real wire lands on wire pixels as often as the views see wires.
-                rate = np.array([view_hit_rates[m.view_index] for m in ms])[use]
-                rate = np.where(np.isfinite(rate), rate, typical_rate)
-                expected = float(np.average(rate, weights=length[use]))
-                observed = float(np.average(hit[use], weights=length[use]))
-                if observed < options.weak_min_hit_share * expected:
-                    confidence = min(confidence, 0.5)
+            # A real wire lands on wire pixels in every view about as often as that view
+            # sees true wires; a false pairing does so only in the views along one of its
+            # cameras, and not where the wires slope towards their supports.
+            every = informative
+            rate = np.array([view_hit_rates[m.view_index] for m in ms])[every]
+            rate = np.where(np.isfinite(rate), rate, typical_rate)
+            expected = float(np.average(rate, weights=length[every]))
+            observed = float(np.average(hit[every], weights=length[every]))
+            if observed < options.min_hit_share * expected:
+                confidence = min(confidence, 0.5)
         if confidence is not None and confidence >= options.min_confidence:
             for m in ms:
                 accepted.setdefault(m.view_index, []).append(m)
