@@ -331,8 +331,8 @@ def provisional_corridor(
     """The band where the lines of one direction run, before anything is measured in 3D.
 
     The line pixels of the analysed images are put on a plane halfway up the plausible wire
-    heights; the densest band across the direction is taken, with a wide margin and the
-    whole range of heights (it only has to find a few pairs that see the wires).
+    heights; the band they fill across the direction is taken, at the usual wire heights (it
+    only has to find a few pairs that see the wires).
 
     Args:
         wire_heights: the lowest and highest a wire may hang above the ground.
@@ -351,16 +351,9 @@ def provisional_corridor(
     az = np.deg2rad(azimuth)
     direction, normal = np.array([np.sin(az), np.cos(az)]), np.array([np.cos(az), -np.sin(az)])
     c, s = xy @ normal, xy @ direction
-    bins = np.arange(c.min() - 1, c.max() + 2, 1.0)
-    hist, _ = np.histogram(c, bins)
-    hist = np.convolve(hist, np.ones(5) / 5, mode="same")
-    peak = int(np.argmax(hist))
-    lo = hi = peak
-    while lo > 0 and hist[lo - 1] > 0.2 * hist[peak]:
-        lo -= 1
-    while hi < len(hist) - 1 and hist[hi + 1] > 0.2 * hist[peak]:
-        hi += 1
-    c_lo, c_hi = bins[lo], bins[hi + 1]
+    # Lines on the ground (a road, field edges) may be denser than the wires: take the whole
+    # band the lines of this direction fill, and let the probe find the wires in it.
+    c_lo, c_hi = np.quantile(c, [0.05, 0.95])
     c_mid = 0.5 * (c_lo + c_hi)
     s_lo, s_hi = _along_extent(scene, c_mid * normal, direction, z, s)
     s_mid = 0.5 * (s_lo + s_hi)

@@ -42,7 +42,7 @@ from .sfm import SfmOptions, run_sfm
 from .support import SupportOptions, WireSupport, keep_supported, wire_support
 from .triangulate import Primitives, TriangulateOptions, triangulate_pair, wire_centres
 from .verify import VerifiedPoints, VerifyOptions, WireMaskFn, verify_primitives
-from .wires import FittedWire, WiresOptions, split_wires
+from .wires import FittedWire, WiresOptions, absorb_points, split_wires
 
 logger = logging.getLogger(__name__)
 
@@ -344,6 +344,30 @@ def reconstruct(
     )
     wires = [dataclasses.replace(w, wire_id=i) for i, w in enumerate(kept)]
     supports = [dataclasses.replace(s, wire_id=i) for i, s in enumerate(supports)]
+    # On a confirmed wire, a primitive the views favour is the right match with prior 1/2
+    # (not 1/K): take those that then reach the posterior, and refit.
+    pending = verified.pending
+    if pending is not None and len(pending) and wires:
+        sure = np.flatnonzero(
+            pending.evidence
+            >= np.log(options.verify.min_posterior / (1 - options.verify.min_posterior))
+        )
+        n_before = len(verified)
+        both = np.r_[verified.pts_in_world, pending.pts_in_world[sure]]
+        wires, taken, _ = absorb_points(
+            wires, both, n_before + np.arange(len(sure)), corridor.azimuth_deg, options.wires
+        )
+        # Keep only the points some wire took, in the order of ``both``.
+        keep = np.r_[np.arange(n_before), taken]
+        remap = np.full(len(both), -1, np.int64)
+        remap[keep] = np.arange(len(keep))
+        verified = verified.with_pending(sure[taken - n_before], options.verify.min_posterior)
+        wires = [dataclasses.replace(w, point_indices=remap[w.point_indices]) for w in wires]
+        logger.info(
+            "wires: %d more points on the confirmed wires (of %d the views favour)",
+            len(taken),
+            len(pending),
+        )
     labels = np.full(len(verified), -1, np.int64)
     for w in wires:
         labels[w.point_indices] = w.wire_id

@@ -92,6 +92,8 @@ class _ViewMeasure:
     normal: F64  # (n, 2) unit image normals of the wire there
     hit: npt.NDArray[np.bool_]  # (n,) on a wire pixel
     control: F64  # (n,) share of the displaced copies on a wire pixel (chance)
+    uv_extended: F64  # (m, 2) the curve continued past its observed ends (EXTEND_SHARE of
+    # its length each side), where it explains other wires' stretches
 
     def share(self, own: npt.NDArray[np.bool_]) -> tuple[float, float, float]:
         """(length px, hit share, chance) over the samples ``own``."""
@@ -99,6 +101,11 @@ class _ViewMeasure:
         if n == 0:
             return 0.0, 0.0, 0.0
         return 0.5 * n, float(self.hit[own].mean()), float(self.control[own].mean())
+
+
+# A wire explains other wires' stretches along its catenary continued this share of its
+# observed length past each end (a wire seen in part still hangs to its supports).
+EXTEND_SHARE = 0.25
 
 
 def _measure_in_view(
@@ -131,7 +138,10 @@ def _measure_in_view(
         return near_wire[y, x]
 
     control = np.mean([on_wire(uv + o * normal) for o in CONTROL_OFFSETS_PX], axis=0)
-    return _ViewMeasure(pixels.view_index, uv, normal, on_wire(uv), control)
+    ext = EXTEND_SHARE * (hi - lo)
+    uv_ext, _, inside_ext = view.project(wire.points(np.arange(lo - ext, hi + ext, step)))
+    uv_ext = uv_ext[inside_ext] - [pixels.x0, pixels.y0]
+    return _ViewMeasure(pixels.view_index, uv, normal, on_wire(uv), control, uv_ext)
 
 
 def _explained(
@@ -140,8 +150,8 @@ def _explained(
     """(n,) samples of a wire that lie on (within ``radius_px`` of) another wire in this view."""
     out = np.zeros(len(measure.uv), bool)
     for o in others:
-        if len(o.uv):
-            d, _ = cKDTree(o.uv).query(measure.uv, distance_upper_bound=radius_px)
+        if len(o.uv_extended):
+            d, _ = cKDTree(o.uv_extended).query(measure.uv, distance_upper_bound=radius_px)
             out |= np.isfinite(d)
     return out
 
@@ -159,8 +169,8 @@ def _advice(wire: FittedWire, groups: list[F64], need: float) -> str:
     centres = [float(np.median(g)) for g in groups]
     # An offset at least ``need`` from every strip that sees it, as close to the wire as that.
     options = [0.0, *(c + need for c in centres), *(c - need for c in centres)]
-    ok = [o for o in options if all(abs(o - c) >= need for c in centres)]
-    target = min(ok, key=abs)
+    ok = [o for o in options if all(abs(o - c) >= need - 1e-9 for c in centres)]
+    target = min(ok, key=abs) if ok else max(centres, key=abs) + need
     side = (
         "over the line"
         if abs(target) < 0.5 * need
@@ -241,67 +251,108 @@ def wire_support(
         normal = np.array([wire.plane_direction_xy[1], -wire.plane_direction_xy[0]])
         lateral = (centres[view_idx, :2] - wire.plane_origin_xy) @ normal
         groups = _strips(lateral, crossing_offset * height) if len(lateral) else []
+        # Each view's strip: the group its offset across the wire falls in.
+        cuts = [float(g[0]) for g in groups[1:]]
+        strip_of = np.searchsorted(np.array(cuts), lateral, side="right")
         strength = sum(0.5 * len(m.uv) * (m.hit.mean() - m.control.mean()) for m in ms)
-        measured.append((ms, cross, groups, height, strength))
+        measured.append((ms, cross, groups, height, strength, strip_of))
 
     finite = view_hit_rates[np.isfinite(view_hit_rates)]
     typical_rate = float(np.median(finite)) if len(finite) else 0.7
-    accepted: dict[int, list[_ViewMeasure]] = {}
     radius = 2 * tolerance_px + 1
-    out: list[WireSupport | None] = [None] * len(wires)
-    for k in sorted(range(len(wires)), key=lambda k: -measured[k][4]):
-        wire = wires[k]
-        ms, cross, groups, height, _ = measured[k]
-        poly = wire.polyline(1.0)
-        poly_xy, poly_z = poly[:, :2], poly[:, 2]
-        rows = np.array(
-            [m.share(~_explained(m, accepted.get(m.view_index, []), radius)) for m in ms]
-        ).reshape(-1, 3)
+    # Which samples of wire k lie on wire o in each view, computed once per (k, o).
+    overlap: dict[tuple[int, int], list[npt.NDArray[np.bool_]]] = {}
+
+    def on_other(k: int, o: int) -> list[npt.NDArray[np.bool_]]:
+        if (k, o) not in overlap:
+            out_k = []
+            for m in measured[k][0]:
+                other = [x for x in measured[o][0] if x.view_index == m.view_index]
+                out_k.append(_explained(m, other, radius))
+            overlap[(k, o)] = out_k
+        return overlap[(k, o)]
+
+    def judge(k: int, others: set[int]) -> tuple[float | None, F64, F64, npt.NDArray[np.bool_]]:
+        """(confidence, length, hit share, views used) of wire k, where the wires ``others``
+        explain what they cover."""
+        ms, cross = measured[k][0], measured[k][1]
+        explained = [np.zeros(len(m.uv), bool) for m in ms]
+        for o in others:
+            explained = [e | x for e, x in zip(explained, on_other(k, o), strict=True)]
+        rows = np.array([m.share(~e) for m, e in zip(ms, explained, strict=True)]).reshape(-1, 3)
         length, hit, control = rows.T
         chance = np.maximum(control, [density[m.view_index] for m in ms])
         informative = length >= options.min_projected_px
         # Views that can tell decide wherever there are any (even when what they see of the
         # wire is all explained by other wires); only without them do the others speak.
-        strong = bool(cross.any())
-        use = cross & informative if strong else informative
-        confidence = None
-        if use.any():
-            llr = _evidence(length[use], hit[use], chance[use], options.correlation_length_px)
-            confidence = float(1 / (1 + np.exp(-min(llr, 50.0))))
-            # A real wire lands on wire pixels in every view about as often as that view
-            # sees true wires; a false pairing does so only in the views along one of its
-            # cameras, and not where the wires slope towards their supports.
-            every = informative
-            rate = np.array([view_hit_rates[m.view_index] for m in ms])[every]
-            rate = np.where(np.isfinite(rate), rate, typical_rate)
-            expected = float(np.average(rate, weights=length[every]))
-            observed = float(np.average(hit[every], weights=length[every]))
+        use = cross & informative if cross.any() else informative
+        if not use.any():
+            return None, length, hit, use
+        llr = _evidence(length[use], hit[use], chance[use], options.correlation_length_px)
+        confidence = float(1 / (1 + np.exp(-min(llr, 50.0))))
+        # A real wire lands on wire pixels in every view about as often as that view sees
+        # true wires; a false pairing does so only in the views along one of its cameras,
+        # and not where the wires slope towards their supports.
+        # So it must do so from every strip that sees a stretch no other wire explains.
+        rate = np.array([view_hit_rates[m.view_index] for m in ms])
+        rate = np.where(np.isfinite(rate), rate, typical_rate)
+        strip_of = measured[k][5]
+        for g in np.unique(strip_of[informative]):
+            sel = informative & (strip_of == g)
+            expected = float(np.average(rate[sel], weights=length[sel]))
+            observed = float(np.average(hit[sel], weights=length[sel]))
             if observed < options.min_hit_share * expected:
                 confidence = min(confidence, 0.5)
-        if confidence is not None and confidence >= options.min_confidence:
-            for m in ms:
-                accepted.setdefault(m.view_index, []).append(m)
+        return confidence, length, hit, use
+
+    def sure(c: float | None) -> bool:
+        return c is not None and c >= options.min_confidence
+
+    # Best supported first: each wire is judged on what the wires accepted before it leave.
+    accepted: set[int] = set()
+    for k in sorted(range(len(wires)), key=lambda k: -measured[k][4]):
+        if sure(judge(k, accepted)[0]):
+            accepted.add(k)
+    # Then each accepted wire against all the others: a false pairing accepted early is
+    # explained once the true wires it borrows from are in; drop the least sure, repeat.
+    while accepted:
+        scores = {k: judge(k, accepted - {k})[0] for k in accepted}
+        worst = min(accepted, key=lambda k: -1.0 if scores[k] is None else scores[k])
+        if sure(scores[worst]):
+            break
+        accepted.discard(worst)
+
+    out = []
+    for k, wire in enumerate(wires):
+        ms, cross, groups, height = measured[k][:4]
+        confidence, length, hit, use = judge(k, accepted - {k})
+        strong = bool(cross.any())
+        poly = wire.polyline(1.0)
         all_len = np.maximum(0.5 * np.array([len(m.uv) for m in ms]), 1e-9)
         all_hit = np.array([m.hit.mean() for m in ms])
         all_chance = np.array([m.control.mean() for m in ms])
-        out[k] = WireSupport(
-            wire_id=wire.wire_id,
-            views=len(ms),
-            strips=len(groups),
-            crossing_views=int(cross.sum()),
-            hit_rate=float(np.average(all_hit, weights=all_len)) if ms else 0.0,
-            crossing_hit_rate=float(np.average(hit[use], weights=length[use]))
-            if strong and use.any()
-            else None,
-            chance=float(np.average(all_chance, weights=all_len)) if ms else 0.0,
-            confidence=confidence,
-            geometry="strong" if strong else "weak",
-            height_above_ground=float(np.median(poly_z - scene.ground_height(poly_xy))),
-            advice=None
-            if strong or not groups
-            else _advice(wire, groups, crossing_offset * height),
+        out.append(
+            WireSupport(
+                wire_id=wire.wire_id,
+                views=len(ms),
+                strips=len(groups),
+                crossing_views=int(cross.sum()),
+                hit_rate=float(np.average(all_hit, weights=all_len)) if ms else 0.0,
+                crossing_hit_rate=float(np.average(hit[use], weights=length[use]))
+                if strong and use.any()
+                else None,
+                chance=float(np.average(all_chance, weights=all_len)) if ms else 0.0,
+                confidence=confidence if k in accepted else min(confidence or 0.0, 0.5),
+                geometry="strong" if strong else "weak",
+                height_above_ground=float(
+                    np.median(poly[:, 2] - scene.ground_height(poly[:, :2]))
+                ),
+                advice=None
+                if strong or not groups
+                else _advice(wire, groups, crossing_offset * height),
+            )
         )
-    return [s for s in out if s is not None]
+    return out
 
 
 def keep_supported(

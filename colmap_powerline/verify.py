@@ -8,6 +8,7 @@ only inside the region where primitives project.
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import time
 from collections import deque
@@ -99,6 +100,44 @@ class VerifiedPoints:
     view_hit_rates: F64  # (V,) each view's estimated hit rate on true wire points (NaN:
     # the view saw no confirmed point)
     wire_pixels: list[ViewWirePixels]  # what each searched view saw, for checking whole wires
+    pending: PendingPoints | None = None  # primitives the views favour, short of sure
+
+    def __len__(self) -> int:
+        return len(self.pts_in_world)
+
+    def with_pending(self, take: npt.NDArray[np.int64], min_posterior: float) -> VerifiedPoints:
+        """These points plus the pending ones ``take`` (their posterior on a confirmed wire)."""
+        p = self.pending
+        if p is None or len(take) == 0:
+            return self
+        post = 1 / (1 + np.exp(-np.clip(p.evidence[take], -50, 50)))  # prior 1/2
+        assert (post >= min_posterior).all()
+        return dataclasses.replace(
+            self,
+            pts_in_world=np.r_[self.pts_in_world, p.pts_in_world[take]],
+            hits=np.r_[self.hits, p.hits[take]],
+            views=np.r_[self.views, p.views[take]],
+            crossing_views=np.r_[self.crossing_views, p.crossing_views[take]],
+            crossing_hits=np.r_[self.crossing_hits, p.crossing_hits[take]],
+            posterior=np.r_[self.posterior, post],
+            pair_index=np.r_[self.pair_index, p.pair_index[take]],
+            refined=np.r_[self.refined, p.refined[take]],
+            pending=None,
+        )
+
+
+@dataclass(frozen=True, eq=False)
+class PendingPoints:
+    """Primitives whose views favour a wire without reaching the posterior on their own."""
+
+    pts_in_world: F64  # (M, 3) refined like the kept points
+    evidence: F64  # (M,) log likelihood ratio from the views (without the match prior)
+    hits: npt.NDArray[np.int32]
+    views: npt.NDArray[np.int32]
+    crossing_views: npt.NDArray[np.int32]
+    crossing_hits: npt.NDArray[np.int32]
+    pair_index: npt.NDArray[np.int32]
+    refined: npt.NDArray[np.bool_]
 
     def __len__(self) -> int:
         return len(self.pts_in_world)
@@ -420,18 +459,27 @@ def verify_primitives(
         hit_rate = np.where(np.isfinite(rates), np.clip(rates, 0.05, 0.99), options.prior_hit_rate)
         post = posterior()
     keep = post >= options.min_posterior
-    kept_pts = pts[keep]
-    refined = np.zeros(len(kept_pts), bool)
-    if options.refine and keep.any():
-        a_mat, b_vec = normal_eq[keep], rhs[keep]
-        # Views constrain only the directions across the wire: damp the step along it.
-        trace = np.trace(a_mat, axis1=1, axis2=2)
-        damp = (1e-3 * trace + 1e-9)[:, None, None] * np.eye(3)
-        step = np.linalg.solve(a_mat + damp, b_vec[..., None])[..., 0]
-        max_step = 5.0 * height / scene.images[0].focal_px  # five pixels at the wires
-        refined = np.linalg.norm(step, axis=1) < max_step
-        refined &= hits[keep] >= 2
-        kept_pts[refined] += step[refined]
+    # Points the views favour without making them sure: a wire confirmed through them
+    # (support) raises their prior from 1/K to 1/2 (see pipeline).
+    evidence = np.log(post) - np.log1p(-np.minimum(post, 1 - 1e-12)) - prior_logit
+    pending = ~keep & (evidence > 0) & (hits >= 2)
+
+    def refine(sel: Mask) -> tuple[F64, Mask]:
+        out = pts[sel]
+        moved = np.zeros(len(out), bool)
+        if options.refine and sel.any():
+            a_mat, b_vec = normal_eq[sel], rhs[sel]
+            # Views constrain only the directions across the wire: damp the step along it.
+            trace = np.trace(a_mat, axis1=1, axis2=2)
+            damp = (1e-3 * trace + 1e-9)[:, None, None] * np.eye(3)
+            step = np.linalg.solve(a_mat + damp, b_vec[..., None])[..., 0]
+            max_step = 5.0 * height / scene.images[0].focal_px  # five pixels at the wires
+            moved = (np.linalg.norm(step, axis=1) < max_step) & (hits[sel] >= 2)
+            out[moved] += step[moved]
+        return out, moved
+
+    kept_pts, refined = refine(keep)
+    pending_pts, pending_refined = refine(pending)
     logger.info(
         "verify: %d of %d primitives kept (%.1f %%; posterior ≥ %.2f), median %d redundant "
         "views of which %d cross; hit rate of the views on true points %s; decode %.1f s, "
@@ -460,4 +508,14 @@ def verify_primitives(
         decoded,
         rates,
         wire_pixels,
+        PendingPoints(
+            pending_pts,
+            evidence[pending],
+            hits[pending],
+            views[pending],
+            n_crossing[pending],
+            crossing_hits[pending],
+            pair_of[pending],
+            pending_refined,
+        ),
     )

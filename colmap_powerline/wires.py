@@ -219,6 +219,43 @@ def _fit(pts: F64, idx: I64, azimuth_xy: F64, options: WiresOptions) -> FittedWi
     )
 
 
+def absorb_points(
+    wires: list[FittedWire],
+    pts_in_world: F64,
+    new_idx: I64,
+    azimuth_deg: float,
+    options: WiresOptions,
+) -> tuple[list[FittedWire], I64, I64]:
+    """Give the points ``pts_in_world[new_idx]`` to the wire whose curve (extended by
+    ``max_gap`` past its ends) passes within ``inlier_distance``, and refit those wires.
+
+    Returns:
+        The wires (same ids), and the points taken with the id of the wire each went to.
+    """
+    if not wires or len(new_idx) == 0:
+        return wires, np.zeros(0, np.int64), np.zeros(0, np.int64)
+    cand = pts_in_world[new_idx]
+    dist = np.stack([w.distance(cand) for w in wires])
+    for k, w in enumerate(wires):
+        s = w.plane_coords(cand)[0]
+        dist[k, (s < w.s_range[0] - options.max_gap) | (s > w.s_range[1] + options.max_gap)] = (
+            np.inf
+        )
+    best = np.argmin(dist, axis=0)
+    close = dist[best, np.arange(len(cand))] < options.inlier_distance
+    az = np.deg2rad(azimuth_deg)
+    along = np.array([np.sin(az), np.cos(az)])
+    out = []
+    for k, w in enumerate(wires):
+        mine = new_idx[close & (best == k)]
+        fit = (
+            _fit(pts_in_world, np.r_[w.point_indices, mine], along, options) if len(mine) else None
+        )
+        out.append(dataclasses.replace(fit, wire_id=w.wire_id) if fit is not None else w)
+    taken = new_idx[close]
+    return out, taken, np.array([wires[b].wire_id for b in best[close]], np.int64)
+
+
 def _same_wire(a: FittedWire, b: FittedWire, options: WiresOptions) -> bool:
     """Do two fitted pieces describe one wire (over their overlap, or across a short gap)?"""
     lo = max(a.s_range[0], b.s_range[0])
