@@ -37,6 +37,7 @@ class PairsOptions:
     # are thin: their image lines are often weaker than a road's or a field's)
     probe_pairs: int = 2  # pairs triangulated and verified to probe a direction
     probe_views: int = 10  # the views nearest those pairs that verify the probe
+    probe_bands: int = 2  # bands across a direction probed (a road may outdo the wires)
     num_direction_images: int = 6  # images used to estimate the direction and corridor
     analysis_width_px: int = 800  # those images are analysed at about this width
     scan_step_deg: float = 3.0  # orientation scan step
@@ -321,18 +322,20 @@ def _along_extent(scene: Scene, centre: F64, direction: F64, z: float, s_guess: 
     return np.quantile(s_guess, [0.01, 0.99])
 
 
-def provisional_corridor(
+def provisional_corridors(
     scene: Scene,
     candidates: DirectionCandidates,
     azimuth: float,
     options: PairsOptions,
     wire_heights: tuple[float, float],
-) -> WireCorridor:
-    """The band where the lines of one direction run, before anything is measured in 3D.
+) -> list[WireCorridor]:
+    """The bands where the lines of one direction run, before anything is measured in 3D.
 
     The line pixels of the analysed images are put on a plane halfway up the plausible wire
-    heights; the band they fill across the direction is taken, at the usual wire heights (it
-    only has to find a few pairs that see the wires).
+    heights. Across the direction they pile up in bands: the wires' band, but a road or a
+    field edge may pile up more. The ``options.probe_bands`` densest bands are returned,
+    strongest first, at the usual wire heights (each only has to find a few pairs that see
+    the wires).
 
     Args:
         wire_heights: the lowest and highest a wire may hang above the ground.
@@ -351,24 +354,42 @@ def provisional_corridor(
     az = np.deg2rad(azimuth)
     direction, normal = np.array([np.sin(az), np.cos(az)]), np.array([np.cos(az), -np.sin(az)])
     c, s = xy @ normal, xy @ direction
-    # Lines on the ground (a road, field edges) may be denser than the wires: take the whole
-    # band the lines of this direction fill, and let the probe find the wires in it.
-    c_lo, c_hi = np.quantile(c, [0.05, 0.95])
-    c_mid = 0.5 * (c_lo + c_hi)
-    s_lo, s_hi = _along_extent(scene, c_mid * normal, direction, z, s)
-    s_mid = 0.5 * (s_lo + s_hi)
-    return WireCorridor(
-        azimuth_deg=azimuth,
-        centre_xy=c_mid * normal + s_mid * direction,
-        half_width=0.5 * (c_hi - c_lo) + options.corridor_margin,
-        wires_half_width=0.5 * (c_hi - c_lo),
-        s_range=(float(s_lo - s_mid), float(s_hi - s_mid)),
-        height=z,
-        height_range=(candidates.ground_z + band[0], candidates.ground_z + band[1]),
-        from_images=options.wire_azimuth_deg is None,
-        measured=False,
-        decoded=candidates.decoded,
-    )
+    bins = np.arange(c.min() - 1, c.max() + 2, 1.0)
+    hist, _ = np.histogram(c, bins)
+    hist = np.convolve(hist, np.ones(5) / 5, mode="same")
+    out: list[WireCorridor] = []
+    taken = np.zeros(len(hist), bool)
+    while len(out) < options.probe_bands and not taken.all():
+        peak = int(np.argmax(np.where(taken, -1.0, hist)))
+        if hist[peak] <= 0:
+            break
+        lo = hi = peak
+        while lo > 0 and not taken[lo - 1] and hist[lo - 1] > 0.2 * hist[peak]:
+            lo -= 1
+        while hi < len(hist) - 1 and not taken[hi + 1] and hist[hi + 1] > 0.2 * hist[peak]:
+            hi += 1
+        # The next band lies clear of this one and of the margin around it.
+        margin = int(options.corridor_margin)
+        taken[max(lo - margin, 0) : hi + margin + 1] = True
+        c_lo, c_hi = bins[lo], bins[hi + 1]
+        c_mid = 0.5 * (c_lo + c_hi)
+        s_lo, s_hi = _along_extent(scene, c_mid * normal, direction, z, s)
+        s_mid = 0.5 * (s_lo + s_hi)
+        out.append(
+            WireCorridor(
+                azimuth_deg=azimuth,
+                centre_xy=c_mid * normal + s_mid * direction,
+                half_width=0.5 * (c_hi - c_lo) + options.corridor_margin,
+                wires_half_width=0.5 * (c_hi - c_lo),
+                s_range=(float(s_lo - s_mid), float(s_hi - s_mid)),
+                height=z,
+                height_range=(candidates.ground_z + band[0], candidates.ground_z + band[1]),
+                from_images=options.wire_azimuth_deg is None,
+                measured=False,
+                decoded=candidates.decoded,
+            )
+        )
+    return out
 
 
 def corridor_from_points(

@@ -32,7 +32,7 @@ from .pairs import (
     WireCorridor,
     corridor_from_points,
     direction_candidates,
-    provisional_corridor,
+    provisional_corridors,
     select_pairs,
 )
 from .rectify import RectifiedPair, RectifyOptions, rectify_pair
@@ -150,9 +150,15 @@ def probe_corridor(scene: Scene, options: ReconstructionOptions) -> WireCorridor
     probe_options = dataclasses.replace(options.pairs, max_pairs=options.pairs.probe_pairs)
     best: tuple[float, WireCorridor, F64, float] | None = None
     order = np.argsort(cands.weights)[::-1][: options.pairs.probe_candidates]
-    for k in order:
-        azimuth = cands.azimuths_deg[k]
-        prov = provisional_corridor(scene, cands, azimuth, options.pairs, heights)
+    probes = [
+        prov
+        for k in order
+        for prov in provisional_corridors(
+            scene, cands, cands.azimuths_deg[k], options.pairs, heights
+        )
+    ]
+    for prov in probes:
+        azimuth = prov.azimuth_deg
         try:
             pairs = select_pairs(scene, prov, probe_options, options.verify.crossing_offset)
         except InputError as e:
@@ -210,7 +216,7 @@ def probe_corridor(scene: Scene, options: ReconstructionOptions) -> WireCorridor
             "the wires)",
             azimuth,
         )
-        prov = provisional_corridor(scene, cands, azimuth, options.pairs, heights)
+        prov = provisional_corridors(scene, cands, azimuth, options.pairs, heights)[0]
         return dataclasses.replace(prov, decoded=tuple(decoded))
     return corridor_from_points(
         scene,
