@@ -293,10 +293,12 @@ def wire_support(
         # A real wire lands on wire pixels in every view about as often as that view sees
         # true wires; a false pairing does so only in the views along one of its cameras,
         # and not where the wires slope towards their supports.
-        # So it must do so from every strip that sees a stretch no other wire explains.
+        # Where no view can tell, it must do so from every strip that sees a stretch no
+        # other wire explains (a false pairing lies on wire i from one and on j from the
+        # other); elsewhere over all views together.
         rate = np.array([view_hit_rates[m.view_index] for m in ms])
         rate = np.where(np.isfinite(rate), rate, typical_rate)
-        strip_of = measured[k][5]
+        strip_of = measured[k][5] if not cross.any() else np.zeros(len(ms), np.int64)
         for g in np.unique(strip_of[informative]):
             sel = informative & (strip_of == g)
             expected = float(np.average(rate[sel], weights=length[sel]))
