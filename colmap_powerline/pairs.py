@@ -37,7 +37,8 @@ class PairsOptions:
     # are thin: their image lines are often weaker than a road's or a field's)
     probe_pairs: int = 2  # pairs triangulated and verified to probe a direction
     probe_views: int = 10  # the views nearest those pairs that verify the probe
-    probe_bands: int = 2  # bands across a direction probed (a road may outdo the wires)
+    probe_bands: int = 2  # bands across a direction probed: the densest, and all of them
+    # (a road may outdo the wires)
     num_direction_images: int = 6  # images used to estimate the direction and corridor
     analysis_width_px: int = 800  # those images are analysed at about this width
     scan_step_deg: float = 3.0  # orientation scan step
@@ -333,9 +334,9 @@ def provisional_corridors(
 
     The line pixels of the analysed images are put on a plane halfway up the plausible wire
     heights. Across the direction they pile up in bands: the wires' band, but a road or a
-    field edge may pile up more. The ``options.probe_bands`` densest bands are returned,
-    strongest first, at the usual wire heights (each only has to find a few pairs that see
-    the wires).
+    field edge may pile up more. The densest band and the whole band they fill are returned
+    (``options.probe_bands`` of them), at the usual wire heights (each only has to find a
+    few pairs that see the wires).
 
     Args:
         wire_heights: the lowest and highest a wire may hang above the ground.
@@ -357,21 +358,17 @@ def provisional_corridors(
     bins = np.arange(c.min() - 1, c.max() + 2, 1.0)
     hist, _ = np.histogram(c, bins)
     hist = np.convolve(hist, np.ones(5) / 5, mode="same")
+    peak = int(np.argmax(hist))
+    lo = hi = peak
+    while lo > 0 and hist[lo - 1] > 0.2 * hist[peak]:
+        lo -= 1
+    while hi < len(hist) - 1 and hist[hi + 1] > 0.2 * hist[peak]:
+        hi += 1
+    # The densest band, then the whole band the lines fill (the wires' own when a road or a
+    # field edge piles up more line pixels than they do).
+    bands = [(bins[lo], bins[hi + 1]), tuple(np.quantile(c, [0.05, 0.95]))]
     out: list[WireCorridor] = []
-    taken = np.zeros(len(hist), bool)
-    while len(out) < options.probe_bands and not taken.all():
-        peak = int(np.argmax(np.where(taken, -1.0, hist)))
-        if hist[peak] <= 0:
-            break
-        lo = hi = peak
-        while lo > 0 and not taken[lo - 1] and hist[lo - 1] > 0.2 * hist[peak]:
-            lo -= 1
-        while hi < len(hist) - 1 and not taken[hi + 1] and hist[hi + 1] > 0.2 * hist[peak]:
-            hi += 1
-        # The next band lies clear of this one and of the margin around it.
-        margin = int(options.corridor_margin)
-        taken[max(lo - margin, 0) : hi + margin + 1] = True
-        c_lo, c_hi = bins[lo], bins[hi + 1]
+    for c_lo, c_hi in bands[: options.probe_bands]:
         c_mid = 0.5 * (c_lo + c_hi)
         s_lo, s_hi = _along_extent(scene, c_mid * normal, direction, z, s)
         s_mid = 0.5 * (s_lo + s_hi)
