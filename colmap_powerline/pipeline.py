@@ -182,6 +182,7 @@ def probe_corridor(scene: Scene, options: ReconstructionOptions) -> WireCorridor
             azimuth,
             options.verify,
             show_progress=False,
+            min_height_above_ground=options.triangulate.min_wire_height,
         )
         decoded += verified.decoded
         wires = [
@@ -323,6 +324,7 @@ def reconstruct(
         corridor.azimuth_deg,
         options.verify,
         options.show_progress,
+        options.triangulate.min_wire_height,
     )
     decoded += verified.decoded
     timings["verify"] = time.perf_counter() - t0

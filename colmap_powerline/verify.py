@@ -300,6 +300,7 @@ def verify_primitives(
     azimuth_deg: float,
     options: VerifyOptions | None = None,
     show_progress: bool = True,
+    min_height_above_ground: float = 0.0,
 ) -> VerifiedPoints:
     """Check every primitive against the wire pixels of the redundant images.
 
@@ -318,6 +319,8 @@ def verify_primitives(
             primitives they produced.
         wire_mask: the detector, called once per image on the region where primitives land.
         azimuth_deg: the wires' horizontal direction, turned into each image's direction.
+        min_height_above_ground: the views' hit rates on true wires are measured on the
+            confirmed points at least this high above the ground (not on road markings).
     """
     options = options or VerifyOptions()
     if not primitives:
@@ -449,8 +452,9 @@ def verify_primitives(
 
     # Each view's hit rate on true points, from the points the other views confirm.
     post = posterior()
+    elevated = pts[:, 2] - scene.ground_height(pts[:, :2]) >= min_height_above_ground
     for _ in range(2):
-        confident = post > options.min_posterior
+        confident = (post > options.min_posterior) & elevated
         rates = np.full(len(scene.images), np.nan)
         for v, idx, hit, _, _ in observations:
             sure = confident[idx]
