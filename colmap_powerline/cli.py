@@ -93,7 +93,8 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     )
     t_run = time.perf_counter() - t0
     truth = load_true_wires(span_dir / "truth" / "wires.json")
-    ev = evaluate(result.verified.pts_in_world, result.wires, truth)  # type: ignore[arg-type]
+    reported = result.verified.pts_in_world[result.labels >= 0]  # wire_points.ply
+    ev = evaluate(reported, result.wires, truth)  # type: ignore[arg-type]
     print(
         f"\nsynthetic span: {span_dir} (rendered in {t_render:.0f} s; "
         f"{len(result.scene)} images, {args.background}, flight {args.flight})"

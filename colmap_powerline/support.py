@@ -44,7 +44,8 @@ class SupportOptions:
     # apart (the detector's template length)
     min_projected_px: float = 30.0  # a view counts for a wire when this much of it lies in
     # the region that view searched
-    min_pair_share: float = 0.2  # pairs that gave this share of a wire's points produced it
+    min_pair_share: float = 0.5  # a view can tell a wire from a false pairing when it can
+    # for the pairs that gave at least this share of the wire's points
     min_hit_share: float = 0.8  # over all views, a wire must lie on wire pixels at least
     # this share as often as the views see true wires (a false pairing lands on wires only
     # in the views along one of its cameras, and not where the wires slope)
@@ -226,7 +227,8 @@ def wire_support(
 
     Returns:
         One :class:`WireSupport` per wire, in the same order (``confidence`` None when no
-        view sees a stretch of it that other wires do not explain).
+        view sees a stretch of it that other wires do not explain, at most 0.5 when it is
+        not accepted).
     """
     options = options or SupportOptions()
     masks = [(p, p.near_wire()) for p in wire_pixels]
@@ -238,16 +240,19 @@ def wire_support(
         ms = [m for m in ms if 0.5 * len(m.uv) >= options.min_projected_px]
         pairs = point_pair[wire.point_indices]
         counts = np.bincount(pairs, minlength=len(pair_centres))
-        produced = np.flatnonzero(counts >= options.min_pair_share * max(len(pairs), 1))
+        produced = np.flatnonzero(counts > 0)
         mid = wire.points(np.array([0.5 * sum(wire.s_range)]))[0]
         height = float(np.median(centres[:, 2]) - mid[2])
         azimuth = float(np.rad2deg(np.arctan2(*wire.plane_direction_xy)) % 180.0)
         view_idx = np.array([m.view_index for m in ms], np.int64)
         cross = np.zeros(len(ms), bool)
         if len(produced) and len(ms):
-            cross = crossing_views(
+            # A view can tell when it can for the pairs that gave most of the wire's points.
+            can = crossing_views(
                 centres[view_idx], pair_centres[produced], azimuth, height, crossing_offset
-            ).all(axis=0)
+            )  # (P, V)
+            share = counts[produced] @ can / max(counts.sum(), 1)
+            cross = share >= options.min_pair_share
         normal = np.array([wire.plane_direction_xy[1], -wire.plane_direction_xy[0]])
         lateral = (centres[view_idx, :2] - wire.plane_origin_xy) @ normal
         groups = _strips(lateral, crossing_offset * height) if len(lateral) else []
@@ -303,7 +308,10 @@ def wire_support(
             sel = informative & (strip_of == g)
             expected = float(np.average(rate[sel], weights=length[sel]))
             observed = float(np.average(hit[sel], weights=length[sel]))
-            if observed < options.min_hit_share * expected:
+            # Short of it beyond what chance along a short stretch explains.
+            n_eff = max(float(length[sel].sum()) / options.correlation_length_px, 1.0)
+            slack = 2.0 * np.sqrt(expected * (1 - expected) / n_eff)
+            if observed < options.min_hit_share * expected - slack:
                 confidence = min(confidence, 0.5)
         return confidence, length, hit, use
 
@@ -346,9 +354,7 @@ def wire_support(
                 chance=float(np.average(all_chance, weights=all_len)) if ms else 0.0,
                 confidence=confidence if k in accepted else min(confidence or 0.0, 0.5),
                 geometry="strong" if strong else "weak",
-                height_above_ground=float(
-                    np.median(poly[:, 2] - scene.ground_height(poly[:, :2]))
-                ),
+                height_above_ground=float(np.median(poly[:, 2] - scene.ground_height(poly[:, :2]))),
                 advice=None
                 if strong or not groups
                 else _advice(wire, groups, crossing_offset * height),

@@ -278,9 +278,7 @@ def _match_prior(primitives: Sequence[Primitives]) -> F64:
     return np.concatenate(out) if out else np.zeros(0)
 
 
-def _log_likelihood_ratio(
-    hit: npt.NDArray[np.bool_], chance: F64, hit_rate: float
-) -> F64:
+def _log_likelihood_ratio(hit: npt.NDArray[np.bool_], chance: F64, hit_rate: float) -> F64:
     """Evidence (natural log) that points are on a wire rather than off it, per observation.
 
     A true point lands on a wire pixel with the view's hit rate; a false one by chance, at

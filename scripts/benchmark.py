@@ -122,7 +122,7 @@ def _run_one(
         cv2.imread(str(path), cv2.IMREAD_COLOR)
     decode_s = time.perf_counter() - t0
     truth = load_true_wires(span_dir / "truth" / "wires.json")
-    ev = evaluate(result.verified.pts_in_world, result.wires, truth)
+    ev = evaluate(result.verified.pts_in_world[result.labels >= 0], result.wires, truth)
     if sfm_info is not None:
         # Absolute error: the same points carried into the GPS-georeferenced frame.
         m = np.array(sfm_info["georef_from_aligned"])
@@ -167,7 +167,7 @@ def main(argv: list[str] | None = None) -> None:
         nargs="*",
         default=[],
         metavar="STAGE.FIELD=VALUE",
-        help="option overrides, e.g. verify.min_hit_ratio=0.8 (values as JSON)",
+        help="option overrides, e.g. verify.min_posterior=0.999 (values as JSON)",
     )
     parser.add_argument(
         "--sfm",

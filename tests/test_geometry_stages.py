@@ -9,9 +9,12 @@ import pytest
 from scipy.spatial import cKDTree
 
 from colmap_powerline import InputError
+from colmap_powerline import pairs as pairs_module
 from colmap_powerline.detect import WireMask
-from colmap_powerline.pairs import PairsOptions, estimate_corridor, select_pairs
+from colmap_powerline.pairs import PairsOptions, select_pairs
+from colmap_powerline.pipeline import ReconstructionOptions, probe_corridor
 from colmap_powerline.rectify import rectify_pair
+from colmap_powerline.support import SupportOptions, keep_supported, wire_support
 from colmap_powerline.synthetic import load_true_wires
 from colmap_powerline.triangulate import (
     TriangulateOptions,
@@ -19,7 +22,14 @@ from colmap_powerline.triangulate import (
     triangulate_pair,
     wire_centres,
 )
-from colmap_powerline.verify import VerifyOptions, crossing_views, verify_primitives
+from colmap_powerline.verify import (
+    VerifyOptions,
+    ViewWirePixels,
+    crossing_views,
+    image_wire_direction_deg,
+    verify_primitives,
+)
+from colmap_powerline.wires import FittedWire
 
 AZIMUTH = 35.0  # the synthetic line's azimuth
 
@@ -36,7 +46,11 @@ def truth_tree(truth):
 
 @pytest.fixture(scope="module")
 def corridor(small_scene):
-    return estimate_corridor(small_scene, PairsOptions(wire_azimuth_deg=AZIMUTH))
+    """The corridor as the pipeline measures it, with the wires' direction given (~10 s)."""
+    options = ReconstructionOptions(
+        pairs=PairsOptions(wire_azimuth_deg=AZIMUTH), show_progress=False
+    )
+    return probe_corridor(small_scene, options)
 
 
 @pytest.fixture(scope="module")
@@ -64,12 +78,27 @@ def _oracle_centres(geom, side, truth):
 # ---------------------------------------------------------------- pairs
 
 
-def test_corridor_direction_estimated_from_images(small_scene):
-    corridor = estimate_corridor(small_scene)
+def test_corridor_direction_estimated_from_images(small_scene, truth):
+    # The whole probe: candidate directions from the images, each probed in 3D (~30 s).
+    corridor = probe_corridor(small_scene, ReconstructionOptions(show_progress=False))
     err = abs((corridor.azimuth_deg - AZIMUTH + 90) % 180 - 90)
-    assert err < 2.0, corridor.azimuth_deg  # measured: 0.3°
-    assert corridor.from_images
+    assert err < 2.0, corridor.azimuth_deg  # measured: < 0.01°
+    assert corridor.from_images and corridor.measured
     assert len(corridor.decoded) > 0
+    # The measured band and heights hold the true wires' middle stretches.
+    lo, hi = corridor.height_range
+    mid = np.concatenate([w.points(np.linspace(0.3, 0.7, 9) * w.length_m) for w in truth])
+    across = (mid[:, :2] - corridor.centre_xy) @ corridor.normal_xy
+    assert np.abs(across).max() < corridor.half_width
+    assert lo <= np.median(mid[:, 2]) <= hi
+
+
+def test_corridor_with_given_direction_is_measured(corridor):
+    assert corridor.azimuth_deg == AZIMUTH and not corridor.from_images and corridor.measured
+    samples = corridor.sample_points(1.0)
+    assert samples.ndim == 3 and samples.shape[0] == 2 and samples.shape[2] == 3
+    np.testing.assert_allclose(samples[0, :, 2], corridor.height_range[0])
+    np.testing.assert_allclose(samples[1, :, 2], corridor.height_range[1])
 
 
 def test_pairs_cross_the_wires(pairs, corridor):
@@ -89,6 +118,28 @@ def test_no_crossing_pair_is_a_clear_error(small_scene, corridor):
     scene = dataclasses.replace(small_scene, images=tuple(line))
     with pytest.raises(InputError, match="no image pair crosses the wires"):
         select_pairs(scene, corridor)
+
+
+def test_select_pairs_heights_are_not_mixed(small_scene, corridor, monkeypatch):
+    """Issue 9, item 5: ``crossing_views`` gets the cameras' height above the wires for every
+    candidate pair (the name was reused for the height above the ground for B/H, so from the
+    second pair on it got the wrong one)."""
+    real = pairs_module.crossing_views
+    heights = []
+
+    def recorder(view_centres, pair_centres, azimuth_deg, height, offset):
+        heights.append(height)
+        return real(view_centres, pair_centres, azimuth_deg, height, offset)
+
+    monkeypatch.setattr(pairs_module, "crossing_views", recorder)
+    chosen = select_pairs(small_scene, corridor)
+    centres = small_scene.centers_in_world
+    above_wires = float(np.median(centres[:, 2])) - corridor.height
+    # The two heights differ here (~50 vs ~75 m), so a mix-up cannot pass unnoticed.
+    above_ground = centres[:, 2] - small_scene.ground_height(centres[:, :2])
+    assert np.abs(above_ground - above_wires).min() > 10.0
+    assert len(heights) > len(chosen) >= 2  # called for every candidate pair
+    np.testing.assert_allclose(heights, above_wires, rtol=0, atol=1e-9)
 
 
 # ---------------------------------------------------------------- rectify
@@ -252,6 +303,10 @@ def test_verification_with_exact_masks_keeps_only_wire_points(
     assert (d > 0.3).mean() < 0.01  # no ghosts survive
     assert np.median(d) < 0.05
     assert (kept.hits >= 1).all() and (kept.views >= kept.hits).all()
+    assert (kept.crossing_views >= kept.crossing_hits).all()
+    assert (kept.views >= kept.crossing_views).all()
+    assert (kept.posterior >= VerifyOptions().min_posterior).all()
+    assert {p.view_index for p in kept.wire_pixels} <= set(range(len(small_scene.images)))
     assert len(kept.decoded) <= len(small_scene.images)
 
 
@@ -264,3 +319,142 @@ def test_interpolated_maps_match_exact_maps(small_scene, pairs):
     assert valid.mean() > 0.3
     err = np.hypot(fast_x - exact_x, fast_y - exact_y)[valid]
     assert err.max() < 0.01  # measured ≈ 1e-3 px
+
+
+@pytest.mark.parametrize(
+    ("field", "value"),
+    [
+        ("min_posterior", 1.0),
+        ("min_posterior", 0.4),
+        ("tolerance_px", 0.0),
+        ("tolerance_px", 25.0),
+        ("crossing_offset", -0.1),
+        ("crossing_offset", 2.0),
+        ("prior_hit_rate", 0.0),
+        ("prior_hit_rate", 1.0),
+        ("num_threads", 0),
+        ("margin_px", -1),
+    ],
+)
+def test_verify_options_are_checked(field, value):
+    VerifyOptions()  # the defaults are valid
+    with pytest.raises(ValueError, match=rf"\b{field}="):
+        VerifyOptions(**{field: value})
+
+
+# ---------------------------------------------------------------- support
+
+
+@pytest.mark.parametrize(
+    ("field", "value"),
+    [
+        ("min_confidence", 1.0),
+        ("min_confidence", 0.3),
+        ("correlation_length_px", 0.5),
+        ("min_projected_px", 0.0),
+        ("min_pair_share", 0.0),
+        ("min_pair_share", 1.5),
+        ("min_hit_share", -0.1),
+        ("min_hit_share", 1.1),
+    ],
+)
+def test_support_options_are_checked(field, value):
+    SupportOptions()  # the defaults are valid
+    with pytest.raises(ValueError, match=rf"\b{field}="):
+        SupportOptions(**{field: value})
+
+
+def _fitted(wire_id, truth_wire, across=0.0, down=0.0):
+    """A FittedWire on a true wire (2 m clear of its ends), moved ``across`` its plane and
+    ``down``; its 100 points are indices 100 wire_id … 100 wire_id + 99."""
+    d = truth_wire.direction_xy
+    return FittedWire(
+        wire_id=wire_id,
+        plane_origin_xy=np.asarray(truth_wire.attach_a[:2]) + across * np.array([d[1], -d[0]]),
+        plane_direction_xy=d,
+        catenary_a=truth_wire.catenary_a_m,
+        s0=truth_wire.s0,
+        z0=truth_wire.z0 - down,
+        s_range=(2.0, truth_wire.length_m - 2.0),
+        point_indices=np.arange(100 * wire_id, 100 * wire_id + 100),
+        rms_residual=0.0,
+    )
+
+
+def test_support_keeps_true_wires_and_drops_false_ones(small_scene, pairs, truth):
+    """Whole-wire support with exact wire masks: the true wires are confirmed on strong
+    geometry; a false pairing (a wire 1.5 m across and 2 m below a true one), a duplicate
+    of a true wire (explained away by it) and a line on the ground are dropped."""
+    n = len(truth)
+    true_wires = [_fitted(k, t) for k, t in enumerate(truth)]
+    false_pairing = _fitted(n, truth[0], across=1.5, down=2.0)
+    duplicate = dataclasses.replace(
+        true_wires[0], wire_id=n + 1, point_indices=np.arange(100 * (n + 1), 100 * (n + 2))
+    )
+    # A straight line 0.5 m above the ground, 20 m beside the line (a road edge): the views
+    # see it (it is drawn into the masks) but it is not a wire.
+    d = truth[0].direction_xy
+    middle = np.mean([t.points(np.array([0.5 * t.length_m]))[0] for t in truth], axis=0)
+    origin = middle[:2] + 20.0 * np.array([d[1], -d[0]]) - 50.0 * d
+    ground_z = float(small_scene.ground_height((origin + 50.0 * d)[None])[0])
+    ground_line = FittedWire(
+        wire_id=n + 2,
+        plane_origin_xy=origin,
+        plane_direction_xy=d,
+        catenary_a=1e6,
+        s0=50.0,
+        z0=ground_z + 0.5,
+        s_range=(0.0, 100.0),
+        point_indices=np.arange(100 * (n + 2), 100 * (n + 3)),
+        rms_residual=0.0,
+    )
+    wires = [*true_wires, false_pairing, duplicate, ground_line]
+    # Pairs 0 and 1 measured every wire but the false pairing, which pair 0 alone produced.
+    point_pair = np.zeros(100 * len(wires), np.int32)
+    for w in wires:
+        if w is not false_pairing:
+            point_pair[w.point_indices[50:]] = 1
+    pair_centres = np.array([[p.left.center_in_world, p.right.center_in_world] for p in pairs[:2]])
+
+    # Exact wire masks of every view that sees a wire, grown by the verification tolerance,
+    # as verification hands them on.
+    tolerance = VerifyOptions().tolerance_px
+    polylines = [t.polyline(0.005) for t in truth] + [ground_line.polyline(0.005)]
+    wire_pixels = []
+    for v, view in enumerate(small_scene.images):
+        uv = np.concatenate([view.project(pl)[0] for pl in polylines])
+        mask = _oracle_mask((view.height, view.width), uv)
+        if mask.any():
+            near = WireMask(mask, mask.astype(np.float32), 0.0, 1).dilated(tolerance)
+            direction = image_wire_direction_deg(view, middle, AZIMUTH)
+            wire_pixels.append(ViewWirePixels.pack(v, 0, 0, near, direction))
+    assert len(wire_pixels) >= 10
+
+    options = SupportOptions()
+    supports = wire_support(
+        small_scene,
+        wires,
+        wire_pixels,
+        point_pair,
+        pair_centres,
+        np.full(len(small_scene.images), 0.95),  # exact masks: the views hit true wires
+        VerifyOptions().crossing_offset,
+        tolerance,
+        options,
+    )
+    assert [s.wire_id for s in supports] == [w.wire_id for w in wires]
+    for s in supports[:n]:
+        assert s.confidence is not None and s.confidence > 0.99, s
+        assert s.geometry == "strong" and s.crossing_views > 0 and s.advice is None, s
+        assert s.hit_rate > 0.95 > 0.2 > s.chance, s
+    bad = supports[n]
+    assert bad.confidence is not None and bad.confidence < options.min_confidence, bad
+    assert bad.geometry == "strong" and bad.hit_rate < 0.2, bad
+    # Everything the duplicate lies on is explained by wire 0: nothing confirms it.
+    dup = supports[n + 1]
+    assert dup.confidence is None or dup.confidence < options.min_confidence, dup
+    assert supports[n + 2].confidence > 0.99 and supports[n + 2].height_above_ground < 1.0
+
+    kept, kept_supports = keep_supported(wires, supports, options, min_height=5.0)
+    assert [w.wire_id for w in kept] == [w.wire_id for w in true_wires]
+    assert [s.wire_id for s in kept_supports] == [w.wire_id for w in true_wires]
