@@ -323,6 +323,38 @@ def _along_extent(scene: Scene, centre: F64, direction: F64, z: float, s_guess: 
     return np.quantile(s_guess, [0.01, 0.99])
 
 
+def _band_corridor(
+    scene: Scene,
+    azimuth: float,
+    c_range: tuple[float, float],
+    s_guess: F64,
+    z: float,
+    height_range: tuple[float, float],
+    options: PairsOptions,
+    measured: bool,
+    decoded: tuple[Path, ...],
+) -> WireCorridor:
+    """The corridor of a band ``c_range`` across the direction, as long as two images see it."""
+    az = np.deg2rad(azimuth)
+    direction, normal = np.array([np.sin(az), np.cos(az)]), np.array([np.cos(az), -np.sin(az)])
+    c_lo, c_hi = c_range
+    c_mid = 0.5 * (c_lo + c_hi)
+    s_lo, s_hi = _along_extent(scene, c_mid * normal, direction, z, s_guess)
+    s_mid = 0.5 * (s_lo + s_hi)
+    return WireCorridor(
+        azimuth_deg=azimuth,
+        centre_xy=c_mid * normal + s_mid * direction,
+        half_width=0.5 * (c_hi - c_lo) + options.corridor_margin,
+        wires_half_width=0.5 * (c_hi - c_lo),
+        s_range=(float(s_lo - s_mid), float(s_hi - s_mid)),
+        height=z,
+        height_range=height_range,
+        from_images=options.wire_azimuth_deg is None,
+        measured=measured,
+        decoded=decoded,
+    )
+
+
 def provisional_corridors(
     scene: Scene,
     candidates: DirectionCandidates,
@@ -367,25 +399,13 @@ def provisional_corridors(
     # The densest band, then the whole band the lines fill (the wires' own when a road or a
     # field edge piles up more line pixels than they do).
     bands = [(bins[lo], bins[hi + 1]), tuple(np.quantile(c, [0.05, 0.95]))]
-    out: list[WireCorridor] = []
-    for c_lo, c_hi in bands[: options.probe_bands]:
-        c_mid = 0.5 * (c_lo + c_hi)
-        s_lo, s_hi = _along_extent(scene, c_mid * normal, direction, z, s)
-        s_mid = 0.5 * (s_lo + s_hi)
-        out.append(
-            WireCorridor(
-                azimuth_deg=azimuth,
-                centre_xy=c_mid * normal + s_mid * direction,
-                half_width=0.5 * (c_hi - c_lo) + options.corridor_margin,
-                wires_half_width=0.5 * (c_hi - c_lo),
-                s_range=(float(s_lo - s_mid), float(s_hi - s_mid)),
-                height=z,
-                height_range=(candidates.ground_z + band[0], candidates.ground_z + band[1]),
-                from_images=options.wire_azimuth_deg is None,
-                measured=False,
-                decoded=candidates.decoded,
-            )
+    heights = (candidates.ground_z + band[0], candidates.ground_z + band[1])
+    out = [
+        _band_corridor(
+            scene, azimuth, b, s, z, heights, options, measured=False, decoded=candidates.decoded
         )
+        for b in bands[: options.probe_bands]
+    ]
     return out
 
 
@@ -394,7 +414,6 @@ def corridor_from_points(
     pts_in_world: F64,
     azimuth: float,
     options: PairsOptions,
-    from_images: bool,
     provisional: WireCorridor,
     decoded: tuple[Path, ...] = (),
 ) -> WireCorridor:
@@ -412,27 +431,22 @@ def corridor_from_points(
     direction, normal = np.array([np.sin(az), np.cos(az)]), np.array([np.cos(az), -np.sin(az)])
     c, s = pts_in_world[:, :2] @ normal, pts_in_world[:, :2] @ direction
     z = pts_in_world[:, 2]
-    c_lo, c_hi = np.quantile(c, [0.01, 0.99])
     z_lo, z_hi = np.quantile(z, [0.02, 0.98])
-    c_mid = 0.5 * (c_lo + c_hi)
-    z_mid = float(np.median(z))
-    s_lo, s_hi = _along_extent(scene, c_mid * normal, direction, z_mid, s)
-    s_mid = 0.5 * (s_lo + s_hi)
-    corridor = WireCorridor(
-        azimuth_deg=azimuth,
-        centre_xy=c_mid * normal + s_mid * direction,
-        half_width=0.5 * (c_hi - c_lo) + options.corridor_margin,
-        wires_half_width=0.5 * (c_hi - c_lo),
-        s_range=(float(s_lo - s_mid), float(s_hi - s_mid)),
-        height=z_mid,
-        height_range=(
+    corridor = _band_corridor(
+        scene,
+        azimuth,
+        tuple(np.quantile(c, [0.01, 0.99])),
+        s,
+        float(np.median(z)),
+        (
             float(min(z_lo, provisional.height_range[0])),
             float(max(z_hi, provisional.height_range[1])),
         ),
-        from_images=from_images,
+        options,
         measured=True,
         decoded=decoded,
     )
+    s_lo, s_hi = corridor.s_range
     ground = float(np.median(scene.ground_height(pts_in_world[:, :2])))
     logger.info(
         "wire corridor (measured): azimuth %.1f°, %.0f wide, %.0f long, wires measured "

@@ -224,7 +224,6 @@ def probe_corridor(scene: Scene, options: ReconstructionOptions) -> WireCorridor
         best[2],
         best[3] if options.pairs.wire_azimuth_deg is None else best[1].azimuth_deg,
         options.pairs,
-        options.pairs.wire_azimuth_deg is None,
         best[1],
         tuple(decoded),
     )
