@@ -339,7 +339,7 @@ def estimate_directions(image: np.ndarray) -> list[float]:
     options = PairsOptions()
     gray = cv2.cvtColor(image, cv2.COLOR_RGB2GRAY)
     factor = max(1, int(round(gray.shape[1] / options.analysis_width_px)))
-    if factor > 1:  # as pairs.estimate_corridor does
+    if factor > 1:  # as pairs.direction_candidates does
         size = (gray.shape[1] // factor, gray.shape[0] // factor)
         gray = cv2.resize(gray, size, interpolation=cv2.INTER_AREA)
     return [a for a, _ in _image_directions(gray.astype(np.float32), options)]
