@@ -54,6 +54,15 @@ class PairsOptions:
     pairs_per_point: int = 2  # how many pairs should cover each part of the corridor
     border_margin_frac: float = 0.05  # corridor points this close to an image border do not count
 
+    def __post_init__(self) -> None:
+        for name in ("max_candidates", "probe_candidates", "probe_pairs", "max_pairs"):
+            if getattr(self, name) < 1:
+                raise ValueError(f"{name}={getattr(self, name)} but expected ≥ 1")
+        if self.probe_views < 0:
+            raise ValueError(f"{self.probe_views=} but expected ≥ 0")
+        if self.probe_bands not in (1, 2):
+            raise ValueError(f"{self.probe_bands=} but expected 1 (densest band) or 2 (and all)")
+
 
 @dataclass(frozen=True)
 class WireCorridor:

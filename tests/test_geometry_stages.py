@@ -458,3 +458,12 @@ def test_support_keeps_true_wires_and_drops_false_ones(small_scene, pairs, truth
     kept, kept_supports = keep_supported(wires, supports, options, min_height=5.0)
     assert [w.wire_id for w in kept] == [w.wire_id for w in true_wires]
     assert [s.wire_id for s in kept_supports] == [w.wire_id for w in true_wires]
+
+
+@pytest.mark.parametrize(
+    ("field", "value"),
+    [("probe_candidates", 0), ("probe_pairs", 0), ("probe_views", -1), ("probe_bands", 3)],
+)
+def test_pairs_options_are_checked(field, value):
+    with pytest.raises(ValueError, match=field):
+        PairsOptions(**{field: value})
