@@ -231,6 +231,14 @@ def _pick_spread(scene: Scene, n: int) -> list[SceneImage]:
     return [scene.images[k] for k in chosen]
 
 
+def axial_mean_deg(angles_deg: F64, weights: F64) -> float:
+    """Weighted mean of directions defined modulo 180° (degrees, in [0, 180))."""
+    doubled = np.deg2rad(2 * np.asarray(angles_deg, np.float64))
+    w = np.asarray(weights, np.float64)
+    mean = np.arctan2((w * np.sin(doubled)).sum(), (w * np.cos(doubled)).sum())
+    return float(np.rad2deg(mean) / 2 % 180.0)
+
+
 def _consensus_azimuth(
     azimuths: F64, weights: F64, tolerance_deg: float = 5.0, min_share: float = 1 / 3
 ) -> float | None:
@@ -242,10 +250,7 @@ def _consensus_azimuth(
     if support[best] <= min_share * weights.sum():
         return None
     members = diff[best] < tolerance_deg
-    doubled = np.deg2rad(2 * azimuths[members])
-    w = weights[members]
-    mean = np.arctan2((w * np.sin(doubled)).sum(), (w * np.cos(doubled)).sum())
-    return float(np.rad2deg(mean) / 2 % 180.0)
+    return axial_mean_deg(azimuths[members], weights[members])
 
 
 @dataclass(frozen=True, eq=False)

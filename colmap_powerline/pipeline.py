@@ -30,6 +30,7 @@ from .pairs import (
     ImagePair,
     PairsOptions,
     WireCorridor,
+    axial_mean_deg,
     corridor_from_points,
     direction_candidates,
     provisional_corridors,
@@ -39,7 +40,13 @@ from .rectify import RectifiedPair, RectifyOptions, rectify_pair
 from .report import write_report
 from .scene import Scene, SceneImage, load_scene, read_image, resolve_inputs
 from .sfm import SfmOptions, run_sfm
-from .support import SupportOptions, WireSupport, keep_supported, wire_support
+from .support import (
+    SupportOptions,
+    WireSupport,
+    height_above_ground,
+    keep_supported,
+    wire_support,
+)
 from .triangulate import Primitives, TriangulateOptions, triangulate_pair, wire_centres
 from .verify import VerifiedPoints, VerifyOptions, WireMaskFn, verify_primitives
 from .wires import FittedWire, WiresOptions, absorb_points, split_wires
@@ -128,12 +135,6 @@ def crop_wire_mask(options: DetectOptions) -> WireMaskFn:
     return wire_mask
 
 
-def _height_above_ground(scene: Scene, wire: FittedWire) -> float:
-    """Median height of a fitted wire above the ground of the sparse points."""
-    poly = wire.polyline(1.0)
-    return float(np.median(poly[:, 2] - scene.ground_height(poly[:, :2])))
-
-
 def probe_corridor(scene: Scene, options: ReconstructionOptions) -> WireCorridor:
     """Find where the wires are by measuring them: a few pairs per candidate direction.
 
@@ -178,7 +179,7 @@ def probe_corridor(scene: Scene, options: ReconstructionOptions) -> WireCorridor
         keep |= {scene.images.index(v) for p in pairs for v in (p.left, p.right)}
         views = tuple(scene.images[i] for i in sorted(keep))
         verified = verify_primitives(
-            dataclasses.replace(scene, images=views),
+            scene.with_images(views),
             prims,
             [(p.left.name, p.right.name) for p in pairs],
             crop_wire_mask(options.detect),
@@ -191,7 +192,7 @@ def probe_corridor(scene: Scene, options: ReconstructionOptions) -> WireCorridor
         wires = [
             w
             for w in split_wires(verified.pts_in_world, azimuth, options.wires)
-            if _height_above_ground(scene, w) >= options.triangulate.min_wire_height
+            if height_above_ground(scene, w) >= options.triangulate.min_wire_height
         ]  # lines on the ground (roads, rows, shadows) triangulate too: they are not wires
         length = float(sum(w.s_range[1] - w.s_range[0] for w in wires))
         logger.info(
@@ -208,12 +209,11 @@ def probe_corridor(scene: Scene, options: ReconstructionOptions) -> WireCorridor
             idx = np.concatenate([w.point_indices for w in wires])
             # The direction of the wires' own planes, weighted by their length (the points'
             # spread is not: parallel wires widen it across the line).
-            doubled = np.array([2 * np.arctan2(*w.plane_direction_xy) for w in wires])
-            weight = np.array([w.s_range[1] - w.s_range[0] for w in wires])
-            measured = np.rad2deg(
-                np.arctan2((weight * np.sin(doubled)).sum(), (weight * np.cos(doubled)).sum()) / 2
+            measured = axial_mean_deg(
+                np.array([np.rad2deg(np.arctan2(*w.plane_direction_xy)) for w in wires]),
+                np.array([w.s_range[1] - w.s_range[0] for w in wires]),
             )
-            best = (length, prov, verified.pts_in_world[idx], float(measured % 180.0))
+            best = (length, prov, verified.pts_in_world[idx], measured)
     if best is None:
         azimuth = cands.azimuths_deg[int(np.argmax(cands.weights))]
         logger.warning(

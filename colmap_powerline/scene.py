@@ -8,7 +8,9 @@ distortion) is supported without re-implementing any of them.
 
 from __future__ import annotations
 
+import dataclasses
 import logging
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
@@ -266,6 +268,14 @@ class Scene:
             return self._by_name[name]
         except KeyError:
             raise KeyError(f"no registered image named {name!r} in {self.model_path}") from None
+
+    def with_images(self, images: Sequence[SceneImage]) -> Scene:
+        """The same model restricted to some of its images; the ground model is shared, not
+        rebuilt."""
+        sub = dataclasses.replace(self, images=tuple(images))
+        if "ground" in self.__dict__:
+            sub.__dict__["ground"] = self.__dict__["ground"]
+        return sub
 
     @cached_property
     def ground(self) -> GroundModel:

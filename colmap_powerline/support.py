@@ -157,6 +157,12 @@ def _explained(
     return out
 
 
+def height_above_ground(scene: Scene, wire: FittedWire) -> float:
+    """Median height of a fitted wire above the ground of the sparse points."""
+    poly = wire.polyline(1.0)
+    return float(np.median(poly[:, 2] - scene.ground_height(poly[:, :2])))
+
+
 def _strips(offsets: F64, gap: float) -> list[F64]:
     """Group positions across the wire into strips: sorted runs closer than ``gap``."""
     order = np.sort(offsets)
@@ -231,13 +237,19 @@ def wire_support(
         not accepted).
     """
     options = options or SupportOptions()
-    masks = [(p, p.near_wire()) for p in wire_pixels]
-    density = {p.view_index: float(m.mean()) for p, m in masks}
+    # One view's mask unpacked at a time (a few images' worth of memory, not all views').
+    per_wire: list[list[_ViewMeasure]] = [[] for _ in wires]
+    density: dict[int, float] = {}
+    for p in wire_pixels:
+        mask = p.near_wire()
+        density[p.view_index] = float(mask.mean())
+        for k, wire in enumerate(wires):
+            m = _measure_in_view(scene, wire, p, mask)
+            if m is not None and 0.5 * len(m.uv) >= options.min_projected_px:
+                per_wire[k].append(m)
     centres = scene.centers_in_world
     measured = []
-    for wire in wires:
-        ms = [m for p, mask in masks if (m := _measure_in_view(scene, wire, p, mask)) is not None]
-        ms = [m for m in ms if 0.5 * len(m.uv) >= options.min_projected_px]
+    for wire, ms in zip(wires, per_wire, strict=True):
         pairs = point_pair[wire.point_indices]
         counts = np.bincount(pairs, minlength=len(pair_centres))
         produced = np.flatnonzero(counts > 0)
@@ -337,7 +349,6 @@ def wire_support(
         ms, cross, groups, height = measured[k][:4]
         confidence, length, hit, use = judge(k, accepted - {k})
         strong = bool(cross.any())
-        poly = wire.polyline(1.0)
         all_len = np.maximum(0.5 * np.array([len(m.uv) for m in ms]), 1e-9)
         all_hit = np.array([m.hit.mean() for m in ms])
         all_chance = np.array([m.control.mean() for m in ms])
@@ -354,7 +365,7 @@ def wire_support(
                 chance=float(np.average(all_chance, weights=all_len)) if ms else 0.0,
                 confidence=confidence if k in accepted else min(confidence or 0.0, 0.5),
                 geometry="strong" if strong else "weak",
-                height_above_ground=float(np.median(poly[:, 2] - scene.ground_height(poly[:, :2]))),
+                height_above_ground=height_above_ground(scene, wire),
                 advice=None
                 if strong or not groups
                 else _advice(wire, groups, crossing_offset * height),

@@ -450,9 +450,12 @@ def verify_primitives(
 
     # Each view's hit rate on true points, from the points the other views confirm.
     post = posterior()
-    elevated = pts[:, 2] - scene.ground_height(pts[:, :2]) >= min_height_above_ground
     for _ in range(2):
-        confident = (post > options.min_posterior) & elevated
+        # Only the few sure points need their height above the ground (not every primitive).
+        confident = post > options.min_posterior
+        sure = np.flatnonzero(confident)
+        low = pts[sure, 2] - scene.ground_height(pts[sure, :2]) < min_height_above_ground
+        confident[sure[low]] = False
         rates = np.full(len(scene.images), np.nan)
         for v, idx, hit, _, _ in observations:
             sure = confident[idx]
