@@ -50,7 +50,7 @@ class PairsOptions:
     min_base_height: float = 0.15  # base/height ratio range of useful pairs
     max_base_height: float = 1.6
     target_base_height: float = 0.7  # ratios beyond this gain no score
-    max_pairs: int = 12  # pairs used at most (fewer when they already cover the corridor)
+    max_pairs: int = 30  # pairs used at most (fewer when they already cover the corridor)
     pairs_per_point: int = 2  # how many pairs should cover each part of the corridor
     border_margin_frac: float = 0.05  # corridor points this close to an image border do not count
 
@@ -492,22 +492,23 @@ def select_pairs(
     false matches there.
     """
     options = options or PairsOptions()
-    samples = corridor.sample_points(1.0)  # (2, N, 3): lowest and highest wire heights
-    n_samples = samples.shape[1]
-    # The share of the wire heights (lowest, highest) at which each image sees each place.
-    seen = np.zeros((len(scene.images), n_samples))
+    # Each place at the lowest and at the highest wire height: a pair covers the place at a
+    # height only where both images see it there (a strip beside the line may see the low
+    # wires of the far side and not the high ones).
+    samples = corridor.sample_points(1.0).reshape(-1, 3)  # (2N, 3)
+    n_samples = len(samples)
+    seen = np.zeros((len(scene.images), n_samples), bool)
     m = options.border_margin_frac
     for i, view in enumerate(scene.images):
-        for level in samples:
-            uv, _, inside = view.project(level)
-            with np.errstate(invalid="ignore"):
-                seen[i] += (
-                    inside
-                    & (uv[:, 0] > m * view.width)
-                    & (uv[:, 0] < (1 - m) * view.width)
-                    & (uv[:, 1] > m * view.height)
-                    & (uv[:, 1] < (1 - m) * view.height)
-                ) / len(samples)
+        uv, _, inside = view.project(samples)
+        with np.errstate(invalid="ignore"):
+            seen[i] = (
+                inside
+                & (uv[:, 0] > m * view.width)
+                & (uv[:, 0] < (1 - m) * view.width)
+                & (uv[:, 1] > m * view.height)
+                & (uv[:, 1] < (1 - m) * view.height)
+            )
     centres = scene.centers_in_world
     ground = scene.ground_height(centres[:, :2])
     direction = corridor.direction_xy
@@ -516,15 +517,15 @@ def select_pairs(
     best_crossing = 0.0
     for i in range(len(scene.images)):
         for j in range(i + 1, len(scene.images)):
-            common = np.minimum(seen[i], seen[j])
-            if (common > 0).sum() < 2:
+            common = seen[i] & seen[j]
+            if common.sum() < 2:
                 continue
             judges = crossing_views(
                 centres, centres[[i, j]][None], corridor.azimuth_deg, above_wires, crossing_offset
             )[0]
             # Where a third view offset across the wires sees it too, false matches can be
             # rejected point by point; elsewhere only whole wires can be judged.
-            judged = np.minimum(common, seen[judges].max(axis=0, initial=0.0))
+            judged = common & seen[judges].any(axis=0)
             base = centres[j] - centres[i]
             b_xy = float(np.linalg.norm(base[:2]))
             if b_xy < 1e-9:
@@ -538,11 +539,11 @@ def select_pairs(
                 continue
             if not options.min_base_height <= bh <= options.max_base_height:
                 continue
-            coverage = float(common.sum()) / 5.0  # five sample lines
-            weight = judged + WEAK_COVERAGE_WEIGHT * (common - judged)
+            coverage = float(common.sum()) / 10.0  # five sample lines at two heights
+            weight = judged + WEAK_COVERAGE_WEIGHT * (common & ~judged)
             score = (
                 float(weight.sum())
-                / 5.0
+                / 10.0
                 * np.sin(np.deg2rad(crossing))
                 * min(bh / options.target_base_height, 1.0)
             )

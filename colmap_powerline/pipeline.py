@@ -55,6 +55,10 @@ logger = logging.getLogger(__name__)
 
 F64 = npt.NDArray[np.float64]
 
+# Confirmed wires take the points the views favour in steps of ``WiresOptions.max_gap`` past
+# their ends; this many steps reach past any span.
+MAX_ABSORB_STEPS = 40
+
 
 @dataclass(kw_only=True)
 class ReconstructionOptions:
@@ -366,9 +370,17 @@ def reconstruct(
         )
         n_before = len(verified)
         both = np.r_[verified.pts_in_world, pending.pts_in_world[sure]]
-        wires, taken, _ = absorb_points(
-            wires, both, n_before + np.arange(len(sure)), corridor.azimuth_deg, options.wires
-        )
+        # A wire grows by at most ``max_gap`` past its ends per step: repeat while it takes
+        # points (its refit curve then reaches the next stretch).
+        left = n_before + np.arange(len(sure))
+        taken = np.zeros(0, np.int64)
+        for _ in range(MAX_ABSORB_STEPS):
+            wires, new, _ = absorb_points(wires, both, left, corridor.azimuth_deg, options.wires)
+            if len(new) == 0:
+                break
+            taken = np.r_[taken, new]
+            left = np.setdiff1d(left, new)
+        taken = np.sort(taken)
         # Keep only the points some wire took, in the order of ``both``.
         keep = np.r_[np.arange(n_before), taken]
         remap = np.full(len(both), -1, np.int64)

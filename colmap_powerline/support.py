@@ -44,8 +44,9 @@ class SupportOptions:
     # apart (the detector's template length)
     min_projected_px: float = 30.0  # a view counts for a wire when this much of it lies in
     # the region that view searched
-    min_pair_share: float = 0.5  # a view can tell a wire from a false pairing when it can
-    # for the pairs that gave at least this share of the wire's points
+    min_pair_share: float = 0.5  # views can tell a wire from a false pairing when, between
+    # them, they can for the pairs that gave at least this share of its points; each view
+    # counts when it can for at least this share of what the best one can
     min_hit_share: float = 0.8  # over all views, a wire must lie on wire pixels at least
     # this share as often as the views see true wires (a false pairing lands on wires only
     # in the views along one of its cameras, and not where the wires slope)
@@ -70,7 +71,7 @@ class WireSupport:
     wire_id: int
     views: int  # views in which the wire was looked for
     strips: int  # groups of those views at distinct positions across the wire
-    crossing_views: int  # views offset across the wire from both cameras of every pair
+    crossing_views: int  # views offset across the wire from both cameras of the pairs
     # that measured it: the only ones that can tell it from a false pairing
     hit_rate: float  # share of its projected length on wire pixels, over all views
     crossing_hit_rate: float | None  # the same over the crossing views
@@ -259,12 +260,19 @@ def wire_support(
         view_idx = np.array([m.view_index for m in ms], np.int64)
         cross = np.zeros(len(ms), bool)
         if len(produced) and len(ms):
-            # A view can tell when it can for the pairs that gave most of the wire's points.
+            # Views can tell when, between them, they can for the pairs that gave most of
+            # the wire's points. Pairs from different strips (1-2, 2-3, 1-3) each have their
+            # own such views: each view counts when it can for about as many of the points
+            # as the best one (a false pairing comes from pairs of one kind, and the views
+            # along their cameras never get there).
             can = crossing_views(
                 centres[view_idx], pair_centres[produced], azimuth, height, crossing_offset
             )  # (P, V)
-            share = counts[produced] @ can / max(counts.sum(), 1)
-            cross = share >= options.min_pair_share
+            total = max(counts.sum(), 1)
+            share = counts[produced] @ can / total
+            told = counts[produced] @ can.any(axis=1) / total
+            if told >= options.min_pair_share:
+                cross = share >= options.min_pair_share * share.max()
         normal = np.array([wire.plane_direction_xy[1], -wire.plane_direction_xy[0]])
         lateral = (centres[view_idx, :2] - wire.plane_origin_xy) @ normal
         groups = _strips(lateral, crossing_offset * height) if len(lateral) else []

@@ -131,7 +131,8 @@ class PendingPoints:
     """Primitives whose views favour a wire without reaching the posterior on their own."""
 
     pts_in_world: F64  # (M, 3) refined like the kept points
-    evidence: F64  # (M,) log likelihood ratio from the views (without the match prior)
+    evidence: F64  # (M,) log likelihood ratio that it lies on a wire, from every view that
+    # sees it (without the match prior: the crossing views did not make it sure)
     hits: npt.NDArray[np.int32]
     views: npt.NDArray[np.int32]
     crossing_views: npt.NDArray[np.int32]
@@ -448,6 +449,14 @@ def verify_primitives(
             np.add.at(evidence, idx[use], llr)
         return 1.0 / (1.0 + np.exp(-np.clip(prior_logit + evidence, -50, 50)))
 
+    def wire_evidence() -> F64:
+        """Evidence that each point lies on a wire at all, from every view that sees it:
+        on a wire already confirmed as a whole, whether it is a false pairing is settled."""
+        evidence = np.zeros(len(pts))
+        for v, idx, hit, chance, _ in observations:
+            np.add.at(evidence, idx, _log_likelihood_ratio(hit, chance, hit_rate[v]))
+        return evidence
+
     # Each view's hit rate on true points, from the points the other views confirm.
     post = posterior()
     for _ in range(2):
@@ -464,9 +473,11 @@ def verify_primitives(
         hit_rate = np.where(np.isfinite(rates), np.clip(rates, 0.05, 0.99), options.prior_hit_rate)
         post = posterior()
     keep = post >= options.min_posterior
-    # Points the views favour without making them sure: a wire confirmed through them
-    # (support) raises their prior from 1/K to 1/2 (see pipeline).
-    evidence = np.log(post) - np.log1p(-np.minimum(post, 1 - 1e-12)) - prior_logit
+    # Points that every view seeing them favours, short of sure: on a wire confirmed as a
+    # whole (support) only whether they lie on a wire is in question, prior 1/2 (see
+    # pipeline). Crossing views that cannot see a faint wire (textured ground, image edge)
+    # no longer outvote the views that do.
+    evidence = wire_evidence()
     pending = ~keep & (evidence > 0) & (hits >= 2)
 
     def refine(sel: Mask) -> tuple[F64, Mask]:

@@ -142,6 +142,31 @@ def test_select_pairs_heights_are_not_mixed(small_scene, corridor, monkeypatch):
     np.testing.assert_allclose(heights, above_wires, rtol=0, atol=1e-9)
 
 
+def test_pair_covers_a_place_only_at_a_height_both_images_see(
+    small_scene, corridor, monkeypatch
+):
+    """A strip beside the line may see the far side's low wires and not its high ones: a
+    pair covers a place at a height only where both of its images see it at that height.
+    Here half of the images see only the lowest wire height and the others only the highest,
+    so only pairs within one half cover anything."""
+    from colmap_powerline.scene import SceneImage
+
+    real = SceneImage.project
+    low = {im.name for im in small_scene.images[::2]}
+    z_mid = 0.5 * sum(corridor.height_range)
+
+    def project(self, pts):
+        uv, depth, inside = real(self, pts)
+        z = np.asarray(pts)[:, 2]
+        return uv, depth, inside & ((z < z_mid) if self.name in low else (z > z_mid))
+
+    monkeypatch.setattr(SceneImage, "project", project)
+    chosen = select_pairs(small_scene, corridor)
+    assert chosen
+    for p in chosen:
+        assert (p.left.name in low) == (p.right.name in low), (p.left.name, p.right.name)
+
+
 # ---------------------------------------------------------------- rectify
 
 
