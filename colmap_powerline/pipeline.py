@@ -45,11 +45,12 @@ from .support import (
     WireSupport,
     height_above_ground,
     keep_supported,
+    support_members,
     wire_support,
 )
 from .triangulate import Primitives, TriangulateOptions, triangulate_pair, wire_centres
 from .verify import VerifiedPoints, VerifyOptions, WireMaskFn, verify_primitives
-from .wires import FittedWire, WiresOptions, absorb_points, split_wires
+from .wires import FittedWire, WiresOptions, absorb_points, merge_pieces, split_wires
 
 logger = logging.getLogger(__name__)
 
@@ -358,8 +359,22 @@ def reconstruct(
     kept, supports = keep_supported(
         candidates, supports, options.support, options.triangulate.min_wire_height
     )
+    members = dict(support_members(kept, corridor.direction_xy, options.wires.max_gap))
+    for k, at in members.items():
+        logger.info(
+            "support: wire %d dropped (%.0f m): it runs through the place %.1f along the line "
+            "where the longer wires end — a member of the support, not a wire",
+            kept[k].wire_id,
+            kept[k].s_range[1] - kept[k].s_range[0],
+            at,
+        )
+    kept = [w for k, w in enumerate(kept) if k not in members]
+    supports = [s for k, s in enumerate(supports) if k not in members]
     wires = [dataclasses.replace(w, wire_id=i) for i, w in enumerate(kept)]
     supports = [dataclasses.replace(s, wire_id=i) for i, s in enumerate(supports)]
+    wires, supports = _join_pieces(
+        wires, supports, verified.pts_in_world, corridor.azimuth_deg, options.wires
+    )
     # On a confirmed wire, a primitive the views favour is the right match with prior 1/2
     # (not 1/K): take those that then reach the posterior, and refit.
     pending = verified.pending
@@ -391,6 +406,10 @@ def reconstruct(
             "wires: %d more points on the confirmed wires (of %d the views favour)",
             len(taken),
             len(pending),
+        )
+        # Pieces that grew towards each other may now be one wire.
+        wires, supports = _join_pieces(
+            wires, supports, verified.pts_in_world, corridor.azimuth_deg, options.wires
         )
     labels = np.full(len(verified), -1, np.int64)
     for w in wires:
@@ -476,6 +495,30 @@ def reconstruct(
             )
             timings["report"] = time.perf_counter() - t0
     return result
+
+
+def _join_pieces(
+    wires: list[FittedWire],
+    supports: list[WireSupport],
+    pts_in_world: F64,
+    azimuth_deg: float,
+    options: WiresOptions,
+) -> tuple[list[FittedWire], list[WireSupport]]:
+    """Confirmed pieces of one wire joined (:func:`merge_pieces`), renumbered from 0. A joined
+    wire reports the support of its piece seen in the most views."""
+    wires, joined = merge_pieces(wires, pts_in_world, azimuth_deg, options)
+    if not joined:
+        return wires, supports
+    best: dict[int, WireSupport] = {}
+    for s in supports:
+        into = joined.get(s.wire_id, s.wire_id)
+        if into not in best or s.views > best[into].views:
+            best[into] = s
+    for b, a in sorted(joined.items()):
+        logger.info("wires: wires %d and %d are one wire (one catenary fits both)", a, b)
+    out_w = [dataclasses.replace(w, wire_id=i) for i, w in enumerate(wires)]
+    out_s = [dataclasses.replace(best[w.wire_id], wire_id=i) for i, w in enumerate(wires)]
+    return out_w, out_s
 
 
 def _write_wires_las(

@@ -382,6 +382,59 @@ def wire_support(
     return out
 
 
+def _extent(wire: FittedWire) -> float:
+    return float(wire.s_range[1] - wire.s_range[0])
+
+
+# Ends of long wires this close together along the line mark one support.
+SUPPORT_END_SPREAD = 5.0
+# A short piece reaching at least this far past a support on both sides is part of it.
+SUPPORT_OVERHANG = 1.0
+
+
+def support_members(
+    wires: Sequence[FittedWire], along_xy: F64, long_length: float
+) -> list[tuple[int, float]]:
+    """Short pieces that are members of a support (tower bracing), not wires.
+
+    Conductors end at their supports, so where two or more long wires (at least
+    ``long_length``) end together along the line there is a support. A lattice tower's
+    members along the line are straight, well seen and really there, so the views confirm
+    them; but a piece shorter than ``long_length`` that runs through such a place, past it on
+    both sides, is part of the structure: a conductor stops there.
+
+    Returns:
+        (index into ``wires``, position of the support along the line) of each member.
+    """
+
+    def ends(w: FittedWire) -> F64:
+        return np.sort(w.points(np.array(w.s_range))[:, :2] @ along_xy)
+
+    spans = [ends(w) for w in wires]
+    long_ends = np.sort(
+        np.concatenate(
+            [e for w, e in zip(wires, spans, strict=True) if _extent(w) >= long_length]
+            or [np.zeros(0)]
+        )
+    )
+    # Groups of ends close together: each group of two or more is a support.
+    supports = []
+    if len(long_ends):
+        breaks = np.flatnonzero(np.diff(long_ends) > SUPPORT_END_SPREAD) + 1
+        for group in np.split(long_ends, breaks):
+            if len(group) >= 2:
+                supports.append(float(np.median(group)))
+    out = []
+    for k, (w, (lo, hi)) in enumerate(zip(wires, spans, strict=True)):
+        if _extent(w) >= long_length:
+            continue
+        for at in supports:
+            if lo <= at - SUPPORT_OVERHANG and hi >= at + SUPPORT_OVERHANG:
+                out.append((k, at))
+                break
+    return out
+
+
 def keep_supported(
     wires: Sequence[FittedWire],
     supports: Sequence[WireSupport],

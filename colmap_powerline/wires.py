@@ -256,6 +256,60 @@ def absorb_points(
     return out, taken, np.array([wires[b].wire_id for b in best[close]], np.int64)
 
 
+def merge_pieces(
+    wires: list[FittedWire], pts_in_world: F64, azimuth_deg: float, options: WiresOptions
+) -> tuple[list[FittedWire], dict[int, int]]:
+    """Join pieces of one wire across any gap: those in one vertical plane whose points one
+    catenary fits (each piece's own curve, continued far, would not meet the other's).
+
+    Returns:
+        The wires (a joined wire keeps the id of its first piece) and, for every id that was
+        joined into another, that wire's id.
+    """
+    az = np.deg2rad(azimuth_deg)
+    along = np.array([np.sin(az), np.cos(az)])
+    out = list(wires)
+    joined: dict[int, int] = {}
+    changed = True
+    while changed:
+        changed = False
+        for i in range(len(out)):
+            for j in range(i + 1, len(out)):
+                a, b = out[i], out[j]
+                # Only pieces near one vertical plane are worth a joint fit (a shortcut: the
+                # joint fit decides).
+                _, across, _ = a.plane_coords(b.points(np.array(b.s_range)))
+                if np.abs(across).max() > MERGE_PLANE_REACH:
+                    continue
+                idx = np.r_[a.point_indices, b.point_indices]
+                fit = _fit(pts_in_world, idx, along, options)
+                if (
+                    fit is None
+                    or fit.rms_residual > options.max_rms
+                    or len(fit.point_indices) < MERGE_INLIER_SHARE * len(idx)
+                ):
+                    continue
+                out[i] = dataclasses.replace(fit, wire_id=a.wire_id)
+                joined[b.wire_id] = a.wire_id
+                del out[j]
+                changed = True
+                break
+            if changed:
+                break
+    # Chains (c joined into b, b into a) point at the surviving wire.
+    for k in joined:
+        while joined[k] in joined:
+            joined[k] = joined[joined[k]]
+    return out, joined
+
+
+# Pieces are one wire when one catenary keeps at least this share of their points.
+MERGE_INLIER_SHARE = 0.95
+# Pieces farther apart across the line than this (at the ends of one, in the plane of the
+# other) are not tried.
+MERGE_PLANE_REACH = 2.0
+
+
 def _same_wire(a: FittedWire, b: FittedWire, options: WiresOptions) -> bool:
     """Do two fitted pieces describe one wire (over their overlap, or across a short gap)?"""
     lo = max(a.s_range[0], b.s_range[0])

@@ -142,9 +142,7 @@ def test_select_pairs_heights_are_not_mixed(small_scene, corridor, monkeypatch):
     np.testing.assert_allclose(heights, above_wires, rtol=0, atol=1e-9)
 
 
-def test_pair_covers_a_place_only_at_a_height_both_images_see(
-    small_scene, corridor, monkeypatch
-):
+def test_pair_covers_a_place_only_at_a_height_both_images_see(small_scene, corridor, monkeypatch):
     """A strip beside the line may see the far side's low wires and not its high ones: a
     pair covers a place at a height only where both of its images see it at that height.
     Here half of the images see only the lowest wire height and the others only the highest,

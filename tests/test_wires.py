@@ -5,8 +5,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from colmap_powerline.support import support_members
 from colmap_powerline.synthetic import SyntheticSpanOptions, TrueWire, build_span
-from colmap_powerline.wires import FittedWire, fit_catenary, split_wires
+from colmap_powerline.wires import (
+    FittedWire,
+    WiresOptions,
+    fit_catenary,
+    merge_pieces,
+    split_wires,
+)
 
 
 @pytest.fixture(scope="module")
@@ -96,3 +103,60 @@ def test_bad_input():
     assert split_wires(np.zeros((5, 3))) == []
     rng = np.random.default_rng(3)
     assert split_wires(rng.uniform(0, 50, (3000, 3)), 35.0) == []  # noise is not a wire
+
+
+def _piece(wire_id: int, y: float, s_lo: float, s_hi: float, z: float) -> FittedWire:
+    return FittedWire(
+        wire_id=wire_id,
+        plane_origin_xy=np.array([0.0, y]),
+        plane_direction_xy=np.array([1.0, 0.0]),
+        catenary_a=1000.0,
+        s0=0.5 * (s_lo + s_hi),
+        z0=z,
+        s_range=(s_lo, s_hi),
+        point_indices=np.arange(10),
+        rms_residual=0.01,
+    )
+
+
+def test_tower_members_are_told_from_wires():
+    """Conductors end at their supports; a short straight piece that runs through the place
+    where they end, past it on both sides, is a member of the tower (the shared generator's
+    towers gave two such 6-8 m pieces at 8 and 13 m height)."""
+    span = [
+        _piece(k, y, -49.5 + 0.3 * k, 48.0 + 0.4 * k, z)
+        for k, (y, z) in enumerate([(4, 21), (4, 26), (5, 31), (-4, 21), (-4, 26), (-5, 31)])
+    ]
+    member = _piece(6, -2.5, 45.2, 53.6, 13.0)  # through the tower at ~49
+    short_end = _piece(7, 5.0, 30.0, 48.5, 31.0)  # a conductor's last stretch: stops there
+    mid_piece = _piece(8, 5.0, -10.0, 5.0, 30.0)  # a short piece in the middle of the span
+    far_member = _piece(9, 2.0, -53.0, -46.0, 12.0)  # through the other tower
+    wires = [*span, member, short_end, mid_piece, far_member]
+    found = dict(support_members(wires, np.array([1.0, 0.0]), long_length=25.0))
+    assert set(found) == {6, 9}
+    assert found[6] == pytest.approx(48.9, abs=1.0) and found[9] == pytest.approx(-49, abs=1.0)
+    # One long wire alone marks no support (its end may be where the images stop).
+    assert support_members([span[0], member], np.array([1.0, 0.0]), 25.0) == []
+
+
+def _catenary_points(s: np.ndarray, y: float, z0: float, a: float = 800.0) -> np.ndarray:
+    rng = np.random.default_rng(int(z0 * 10))
+    z = z0 + a * (np.cosh(s / a) - 1)
+    return np.c_[s, np.full(len(s), y), z] + rng.normal(0, 0.02, (len(s), 3))
+
+
+def test_pieces_of_one_wire_are_joined_across_a_long_gap():
+    """Two confirmed pieces 30 m apart (beyond ``max_gap``) that one catenary fits are one
+    wire; a piece of the wire 5 m above in the same vertical plane is not."""
+    s_left, s_right = np.arange(-50, -20, 0.05), np.arange(10, 50, 0.05)
+    pts = np.r_[_catenary_points(s_left, 4.0, 20.0), _catenary_points(s_right, 4.0, 20.0)]
+    wires = split_wires(pts, 90.0)
+    assert len(wires) == 2  # too far apart for the split's own merge
+    joined, into = merge_pieces(wires, pts, 90.0, WiresOptions())
+    assert len(joined) == 1 and into == {wires[1].wire_id: wires[0].wire_id}
+    assert joined[0].s_range[1] - joined[0].s_range[0] == pytest.approx(100, abs=0.5)
+
+    above = np.r_[_catenary_points(s_left, 4.0, 20.0), _catenary_points(s_right, 4.0, 25.0)]
+    wires = split_wires(above, 90.0)
+    joined, into = merge_pieces(wires, above, 90.0, WiresOptions())
+    assert len(joined) == 2 and into == {}
