@@ -378,38 +378,55 @@ def reconstruct(
     # On a confirmed wire, a primitive the views favour is the right match with prior 1/2
     # (not 1/K): take those that then reach the posterior, and refit.
     pending = verified.pending
-    if pending is not None and len(pending) and wires:
-        sure = np.flatnonzero(
-            pending.evidence
-            >= np.log(options.verify.min_posterior / (1 - options.verify.min_posterior))
+    if wires:
+        logit = np.log(options.verify.min_posterior / (1 - options.verify.min_posterior))
+        sure = (
+            np.flatnonzero(pending.evidence >= logit)
+            if pending is not None
+            else np.zeros(0, np.int64)
         )
         n_before = len(verified)
-        both = np.r_[verified.pts_in_world, pending.pts_in_world[sure]]
+        both = (
+            np.r_[verified.pts_in_world, pending.pts_in_world[sure]]
+            if pending is not None
+            else verified.pts_in_world
+        )
         # A wire grows by at most ``max_gap`` past its ends per step: repeat while it takes
-        # points (its refit curve then reaches the next stretch).
-        left = n_before + np.arange(len(sure))
+        # points (its refit curve then reaches the next stretch). Sure points that no
+        # confirmed wire holds (those of a dropped duplicate of it) are offered too.
+        held = np.zeros(n_before, bool)
+        for w in wires:
+            held[w.point_indices] = True
+        left = np.r_[np.flatnonzero(~held), n_before + np.arange(len(sure))]
         taken = np.zeros(0, np.int64)
         for _ in range(MAX_ABSORB_STEPS):
             wires, new, _ = absorb_points(wires, both, left, corridor.azimuth_deg, options.wires)
             if len(new) == 0:
-                break
+                # Pieces that grew towards each other may now be one wire, which grows on.
+                n_wires = len(wires)
+                wires, supports = _join_pieces(
+                    wires, supports, both, corridor.azimuth_deg, options.wires
+                )
+                if len(wires) == n_wires:
+                    break
+                continue
             taken = np.r_[taken, new]
             left = np.setdiff1d(left, new)
         taken = np.sort(taken)
+        new_pending = taken[taken >= n_before]
         # Keep only the points some wire took, in the order of ``both``.
-        keep = np.r_[np.arange(n_before), taken]
+        keep = np.r_[np.arange(n_before), new_pending]
         remap = np.full(len(both), -1, np.int64)
         remap[keep] = np.arange(len(keep))
-        verified = verified.with_pending(sure[taken - n_before], options.verify.min_posterior)
+        verified = verified.with_pending(sure[new_pending - n_before], options.verify.min_posterior)
         wires = [dataclasses.replace(w, point_indices=remap[w.point_indices]) for w in wires]
         logger.info(
-            "wires: %d more points on the confirmed wires (of %d the views favour)",
+            "wires: %d more points on the confirmed wires (%d sure ones of dropped duplicates, "
+            "%d of the %d the views favour)",
             len(taken),
-            len(pending),
-        )
-        # Pieces that grew towards each other may now be one wire.
-        wires, supports = _join_pieces(
-            wires, supports, verified.pts_in_world, corridor.azimuth_deg, options.wires
+            len(taken) - len(new_pending),
+            len(new_pending),
+            len(pending) if pending is not None else 0,
         )
     labels = np.full(len(verified), -1, np.int64)
     for w in wires:

@@ -270,12 +270,16 @@ def merge_pieces(
     along = np.array([np.sin(az), np.cos(az)])
     out = list(wires)
     joined: dict[int, int] = {}
+    apart: set[tuple[int, int]] = set()  # pairs of ids already found to be two wires
     changed = True
     while changed:
         changed = False
         for i in range(len(out)):
             for j in range(i + 1, len(out)):
                 a, b = out[i], out[j]
+                if (a.wire_id, b.wire_id) in apart:
+                    continue
+                apart.add((a.wire_id, b.wire_id))
                 # Only pieces near one vertical plane are worth a joint fit (a shortcut: the
                 # joint fit decides).
                 _, across, _ = a.plane_coords(b.points(np.array(b.s_range)))
@@ -283,12 +287,16 @@ def merge_pieces(
                     continue
                 idx = np.r_[a.point_indices, b.point_indices]
                 fit = _fit(pts_in_world, idx, along, options)
-                if (
-                    fit is None
-                    or fit.rms_residual > options.max_rms
-                    or len(fit.point_indices) < MERGE_INLIER_SHARE * len(idx)
-                ):
+                if fit is None or fit.rms_residual > options.max_rms:
                     continue
+                # Each piece must lie on it (a short piece beside a long wire is a small
+                # share of their points, so the share of all of them would not tell).
+                inlier = np.isin(idx, fit.point_indices)
+                n_a = len(a.point_indices)
+                if min(inlier[:n_a].mean(), inlier[n_a:].mean()) < MERGE_INLIER_SHARE:
+                    continue
+                # The joined wire is new: its pairs are tried again.
+                apart = {p for p in apart if a.wire_id not in p}
                 out[i] = dataclasses.replace(fit, wire_id=a.wire_id)
                 joined[b.wire_id] = a.wire_id
                 del out[j]
@@ -303,7 +311,7 @@ def merge_pieces(
     return out, joined
 
 
-# Pieces are one wire when one catenary keeps at least this share of their points.
+# Pieces are one wire when one catenary keeps at least this share of the points of each.
 MERGE_INLIER_SHARE = 0.95
 # Pieces farther apart across the line than this (at the ends of one, in the plane of the
 # other) are not tried.
@@ -425,6 +433,10 @@ def split_wires(
             fit = _fit(pts, np.flatnonzero(close & (best == k)), along, options)
             if fit is not None and fit.rms_residual <= options.max_rms:
                 wires.append(fit)
+    # Pieces of one wire that the voxel chains and the short-gap merge left apart.
+    wires, _ = merge_pieces(
+        [dataclasses.replace(w, wire_id=i) for i, w in enumerate(wires)], pts, azimuth_deg, options
+    )
     # Deterministic numbering: across the line, then by height.
     wires.sort(key=lambda w: (round(float(w.plane_origin_xy @ normal), 1), w.z0))
     out = [dataclasses.replace(w, wire_id=i) for i, w in enumerate(wires)]

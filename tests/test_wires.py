@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -145,18 +147,36 @@ def _catenary_points(s: np.ndarray, y: float, z0: float, a: float = 800.0) -> np
     return np.c_[s, np.full(len(s), y), z] + rng.normal(0, 0.02, (len(s), 3))
 
 
-def test_pieces_of_one_wire_are_joined_across_a_long_gap():
-    """Two confirmed pieces 30 m apart (beyond ``max_gap``) that one catenary fits are one
-    wire; a piece of the wire 5 m above in the same vertical plane is not."""
-    s_left, s_right = np.arange(-50, -20, 0.05), np.arange(10, 50, 0.05)
-    pts = np.r_[_catenary_points(s_left, 4.0, 20.0), _catenary_points(s_right, 4.0, 20.0)]
-    wires = split_wires(pts, 90.0)
-    assert len(wires) == 2  # too far apart for the split's own merge
-    joined, into = merge_pieces(wires, pts, 90.0, WiresOptions())
-    assert len(joined) == 1 and into == {wires[1].wire_id: wires[0].wire_id}
-    assert joined[0].s_range[1] - joined[0].s_range[0] == pytest.approx(100, abs=0.5)
+def _pieces(left: np.ndarray, right: np.ndarray) -> list[FittedWire]:
+    """One fitted wire per point set, indexed into their concatenation."""
+    (a,) = split_wires(left, 90.0)
+    (b,) = split_wires(right, 90.0)
+    b = dataclasses.replace(b, wire_id=1, point_indices=b.point_indices + len(left))
+    return [a, b]
 
-    above = np.r_[_catenary_points(s_left, 4.0, 20.0), _catenary_points(s_right, 4.0, 25.0)]
-    wires = split_wires(above, 90.0)
-    joined, into = merge_pieces(wires, above, 90.0, WiresOptions())
+
+def test_pieces_of_one_wire_are_joined_across_a_long_gap():
+    """Two pieces 30 m apart (beyond ``max_gap``) that one catenary fits are one wire; a
+    piece of the wire 5 m above in the same vertical plane is not."""
+    s_left, s_right = np.arange(-50, -20, 0.05), np.arange(10, 50, 0.05)
+    left, right = _catenary_points(s_left, 4.0, 20.0), _catenary_points(s_right, 4.0, 20.0)
+    joined, into = merge_pieces(_pieces(left, right), np.r_[left, right], 90.0, WiresOptions())
+    assert len(joined) == 1 and into == {1: 0}
+    assert joined[0].s_range[1] - joined[0].s_range[0] == pytest.approx(100, abs=0.5)
+    # The split does it too.
+    assert len(split_wires(np.r_[left, right], 90.0)) == 1
+
+    above = _catenary_points(s_right, 4.0, 25.0)
+    joined, into = merge_pieces(_pieces(left, above), np.r_[left, above], 90.0, WiresOptions())
+    assert len(joined) == 2 and into == {}
+    assert len(split_wires(np.r_[left, above], 90.0)) == 2
+
+
+def test_a_short_piece_beside_a_long_wire_is_not_joined_to_it():
+    """A 20 m piece of a wire 8 m higher is a small share of the points of both; one
+    catenary through all of them keeps most points (the long wire's) but not the piece's."""
+    long_pts = _catenary_points(np.arange(-50, 50, 0.05), 4.0, 20.0)
+    short_pts = _catenary_points(np.arange(10, 30, 0.2), 4.0, 28.0)
+    pts = np.r_[long_pts, short_pts]
+    joined, into = merge_pieces(_pieces(long_pts, short_pts), pts, 90.0, WiresOptions())
     assert len(joined) == 2 and into == {}
