@@ -50,7 +50,14 @@ from .support import (
 )
 from .triangulate import Primitives, TriangulateOptions, triangulate_pair, wire_centres
 from .verify import VerifiedPoints, VerifyOptions, WireMaskFn, verify_primitives
-from .wires import FittedWire, WiresOptions, absorb_points, merge_pieces, split_wires
+from .wires import (
+    FittedWire,
+    WiresOptions,
+    absorb_points,
+    merge_pieces,
+    split_wires,
+    trim_wire,
+)
 
 logger = logging.getLogger(__name__)
 
@@ -124,9 +131,12 @@ def _detect_rectified(
     return wire_centres(wm.mask & valid, wm.response), int(wm.mask.sum())
 
 
-def crop_wire_mask(options: DetectOptions) -> WireMaskFn:
+def crop_wire_mask(options: DetectOptions, template_length_px: int | None = None) -> WireMaskFn:
     """The detector verification calls on each view: only the crop where primitives land is
-    searched; the length filter stays scaled to the whole image."""
+    searched; the length filter stays scaled to the whole image; ``template_length_px``
+    (None: the detector's own) is the line template's length there."""
+    if template_length_px is not None:
+        options = dataclasses.replace(options, template_length_px=template_length_px)
 
     def wire_mask(
         view: SceneImage, image: np.ndarray, direction: float, crop: tuple[int, int, int, int]
@@ -187,7 +197,7 @@ def probe_corridor(scene: Scene, options: ReconstructionOptions) -> WireCorridor
             scene.with_images(views),
             prims,
             [(p.left.name, p.right.name) for p in pairs],
-            crop_wire_mask(options.detect),
+            crop_wire_mask(options.detect, options.verify.template_length_px or None),
             azimuth,
             options.verify,
             show_progress=False,
@@ -329,7 +339,7 @@ def reconstruct(
         scene,
         primitives,
         [(p.left.name, p.right.name) for p in pairs],
-        crop_wire_mask(options.detect),
+        crop_wire_mask(options.detect, options.verify.template_length_px or None),
         corridor.azimuth_deg,
         options.verify,
         options.show_progress,
@@ -345,17 +355,36 @@ def reconstruct(
     pair_centres = np.array(
         [[p.left.center_in_world, p.right.center_in_world] for p in pairs]
     ).reshape(-1, 2, 3)
-    supports = wire_support(
-        scene,
-        candidates,
-        verified.wire_pixels,
-        verified.pair_index,
-        pair_centres,
-        verified.view_hit_rates,
-        options.verify.crossing_offset,
-        options.verify.tolerance_px,
-        options.support,
-    )
+
+    def judge(wires: list[FittedWire]) -> list[WireSupport]:
+        return wire_support(
+            scene,
+            wires,
+            verified.wire_pixels,
+            verified.pair_index,
+            pair_centres,
+            verified.view_hit_rates,
+            options.verify.crossing_offset,
+            options.verify.tolerance_px,
+            options.support,
+        )
+
+    supports = judge(candidates)
+    # A wire the views reject as a whole may be right along one stretch (its end went
+    # astray): that stretch, refitted, is judged again with the others.
+    trimmed = {
+        k: trim_wire(w, verified.pts_in_world, s.supported_s, corridor.azimuth_deg, options.wires)
+        for k, (w, s) in enumerate(zip(candidates, supports, strict=True))
+        if s.supported_s is not None
+        and s.height_above_ground >= options.triangulate.min_wire_height
+    }
+    if any(t is not None for t in trimmed.values()):
+        logger.info(
+            "support: %d rejected wires have a supported stretch; judging them again",
+            sum(t is not None for t in trimmed.values()),
+        )
+        candidates = [trimmed[k] or w if k in trimmed else w for k, w in enumerate(candidates)]
+        supports = judge(candidates)
     kept, supports = keep_supported(
         candidates, supports, options.support, options.triangulate.min_wire_height
     )

@@ -82,9 +82,13 @@ class WireSupport:
     # false pairing (the confidence then comes from the other views)
     height_above_ground: float  # median height of the wire above the ground surface
     advice: str | None = None  # what to fly to make weak geometry strong
+    supported_s: tuple[float, float] | None = None  # (not written) when the views reject
+    # the wire as a whole but support one stretch of it: that stretch along its plane
 
     def to_json(self) -> dict[str, Any]:
-        return asdict(self)
+        out = asdict(self)
+        del out["supported_s"]
+        return out
 
 
 @dataclass(frozen=True, eq=False)
@@ -94,6 +98,7 @@ class _ViewMeasure:
     normal: F64  # (n, 2) unit image normals of the wire there
     hit: npt.NDArray[np.bool_]  # (n,) on a wire pixel
     control: F64  # (n,) share of the displaced copies on a wire pixel (chance)
+    s: F64  # (n,) where each sample lies along the wire's plane
     uv_extended: F64  # (m, 2) the curve continued past its observed ends (EXTEND_SHARE of
     # its length each side), where it explains other wires' stretches
 
@@ -104,6 +109,12 @@ class _ViewMeasure:
             return 0.0, 0.0, 0.0
         return 0.5 * n, float(self.hit[own].mean()), float(self.control[own].mean())
 
+
+# A wire the views reject as a whole is looked at in this many stretches along it, for
+# one they support (a true wire whose end went astray, or one partly over ground where the
+# views cannot see it).
+TRIM_BINS = 20
+MIN_TRIM_BINS = 3  # a supported stretch shorter than this many is not proposed
 
 # A wire explains other wires' stretches along its catenary continued this share of its
 # observed length past each end (a wire seen in part still hangs to its supports).
@@ -120,11 +131,11 @@ def _measure_in_view(
     if depth <= 0:
         return None
     step = 0.5 * depth / view.focal_px  # half a pixel at the wire
-    poly = wire.points(np.arange(lo, hi + 1e-9, step))
-    uv, _, inside = view.project(poly)
+    s_all = np.arange(lo, hi + 1e-9, step)
+    uv, _, inside = view.project(wire.points(s_all))
     if inside.sum() < 3:
         return None
-    uv = uv[inside] - [pixels.x0, pixels.y0]
+    uv, s_all = uv[inside] - [pixels.x0, pixels.y0], s_all[inside]
     h, w = pixels.shape
     in_crop = (uv[:, 0] >= 0) & (uv[:, 1] >= 0) & (uv[:, 0] < w) & (uv[:, 1] < h)
     if in_crop.sum() < 3:
@@ -132,7 +143,7 @@ def _measure_in_view(
     tangent = np.gradient(uv, axis=0)
     tangent /= np.maximum(np.linalg.norm(tangent, axis=1, keepdims=True), 1e-9)
     normal = np.c_[-tangent[:, 1], tangent[:, 0]]
-    uv, normal = uv[in_crop], normal[in_crop]
+    uv, normal, s_all = uv[in_crop], normal[in_crop], s_all[in_crop]
 
     def on_wire(pts: F64) -> npt.NDArray[np.bool_]:
         x = np.clip(np.floor(pts[:, 0]).astype(np.int64), 0, w - 1)
@@ -143,7 +154,7 @@ def _measure_in_view(
     ext = EXTEND_SHARE * (hi - lo)
     uv_ext, _, inside_ext = view.project(wire.points(np.arange(lo - ext, hi + ext, step)))
     uv_ext = uv_ext[inside_ext] - [pixels.x0, pixels.y0]
-    return _ViewMeasure(pixels.view_index, uv, normal, on_wire(uv), control, uv_ext)
+    return _ViewMeasure(pixels.view_index, uv, normal, on_wire(uv), control, s_all, uv_ext)
 
 
 def _explained(
@@ -335,6 +346,56 @@ def wire_support(
                 confidence = min(confidence, 0.5)
         return confidence, length, hit, use
 
+    def stretch(k: int, others: set[int]) -> tuple[float, float] | None:
+        """The longest stretch of wire k that the views support, when that is not all of it:
+        along the wire, bins where the views hit at least halfway from chance to their hit
+        rate on true wires (bins they hardly see do not break it)."""
+        ms, cross = measured[k][0], measured[k][1]
+        if not ms:
+            return None
+        explained = [np.zeros(len(m.uv), bool) for m in ms]
+        for o in others:
+            explained = [e | x for e, x in zip(explained, on_other(k, o), strict=True)]
+        length = np.array([0.5 * (~e).sum() for e in explained])
+        informative = length >= options.min_projected_px
+        use = cross & informative if cross.any() else informative
+        if not use.any():
+            return None
+        own = [(m, ~e) for m, e, u in zip(ms, explained, use, strict=True) if u]
+        s_at = np.concatenate([m.s[o] for m, o in own])
+        hit = np.concatenate([m.hit[o] for m, o in own]).astype(np.float64)
+        control = np.concatenate([m.control[o] for m, o in own])
+        rate = np.concatenate([np.full(int(o.sum()), view_hit_rates[m.view_index]) for m, o in own])
+        rate = np.where(np.isfinite(rate), rate, typical_rate)
+        lo, hi = wires[k].s_range
+        n_bins = max(int(TRIM_BINS), 1)
+        edges = np.linspace(lo, hi, n_bins + 1)
+        b = np.clip(np.searchsorted(edges, s_at, side="right") - 1, 0, n_bins - 1)
+        count = np.bincount(b, minlength=n_bins).astype(np.float64)
+        seen = np.maximum(count, 1.0)
+        observed = np.bincount(b, hit, n_bins) / seen
+        expected = np.bincount(b, rate, n_bins) / seen
+        chance = np.bincount(b, control, n_bins) / seen
+        known = 0.5 * count >= options.min_projected_px
+        good = known & (observed >= 0.5 * (chance + expected))
+        ok = good | ~known
+        best: tuple[int, int] | None = None
+        start = None
+        for i in range(n_bins + 1):
+            if i < n_bins and ok[i]:
+                start = i if start is None else start
+                continue
+            if start is not None and good[start:i].any():
+                # Trim unknown bins at the ends of the run.
+                g = np.flatnonzero(good[start:i]) + start
+                run = (int(g[0]), int(g[-1]) + 1)
+                if best is None or run[1] - run[0] > best[1] - best[0]:
+                    best = run
+            start = None
+        if best is None or best == (0, n_bins) or best[1] - best[0] < MIN_TRIM_BINS:
+            return None
+        return float(edges[best[0]]), float(edges[best[1]])
+
     def sure(c: float | None) -> bool:
         return c is not None and c >= options.min_confidence
 
@@ -377,6 +438,7 @@ def wire_support(
                 advice=None
                 if strong or not groups
                 else _advice(wire, groups, crossing_offset * height),
+                supported_s=None if k in accepted else stretch(k, accepted - {k}),
             )
         )
     return out
@@ -411,19 +473,21 @@ def support_members(
         return np.sort(w.points(np.array(w.s_range))[:, :2] @ along_xy)
 
     spans = [ends(w) for w in wires]
-    long_ends = np.sort(
-        np.concatenate(
-            [e for w, e in zip(wires, spans, strict=True) if _extent(w) >= long_length]
-            or [np.zeros(0)]
-        )
-    )
-    # Groups of ends close together: each group of two or more is a support.
+    long_spans = [e for w, e in zip(wires, spans, strict=True) if _extent(w) >= long_length]
+    # Wires seen only in part end short of their support, inside the span: the support is
+    # where the outermost ends of a group of nearby ends meet (the lower ends from below,
+    # the upper ends from above).
     supports = []
-    if len(long_ends):
-        breaks = np.flatnonzero(np.diff(long_ends) > SUPPORT_END_SPREAD) + 1
-        for group in np.split(long_ends, breaks):
-            if len(group) >= 2:
-                supports.append(float(np.median(group)))
+    for side in (0, 1):
+        sign = 1.0 if side == 0 else -1.0  # outward is down for lower ends, up for upper
+        pos = np.sort(sign * np.array([e[side] for e in long_spans]))
+        if len(pos) < 2:
+            continue
+        breaks = np.flatnonzero(np.diff(pos) > SUPPORT_END_SPREAD) + 1
+        for group in np.split(pos, breaks):
+            outer = group[group <= group[0] + SUPPORT_END_SPREAD]
+            if len(outer) >= 2:
+                supports.append(float(sign * np.median(outer)))
     out = []
     for k, (w, (lo, hi)) in enumerate(zip(wires, spans, strict=True)):
         if _extent(w) >= long_length:

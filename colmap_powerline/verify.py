@@ -44,6 +44,9 @@ class VerifyOptions:
     refine: bool = True  # move each kept point onto the wire centres of the redundant views
     num_threads: int = 2  # views processed at once (peak memory grows with it)
     margin_px: int = 24  # wire search region: bounding box of the projections plus this margin
+    template_length_px: int = 25  # the line template in the views checked: longer than the
+    # pairs' (--detect.template_length_px), as the wires' direction there comes from the
+    # poses, and a faint wire over soil needs the length (0: the pairs' template)
 
     def __post_init__(self) -> None:
         if not 0.5 <= self.min_posterior < 1:
@@ -58,6 +61,8 @@ class VerifyOptions:
             raise ValueError(f"{self.num_threads=} but expected ≥ 1")
         if self.margin_px < 0:
             raise ValueError(f"{self.margin_px=} but expected ≥ 0")
+        if self.template_length_px != 0 and self.template_length_px < 3:
+            raise ValueError(f"{self.template_length_px=} but expected 0 or ≥ 3")
 
 
 @dataclass(frozen=True, eq=False)

@@ -357,6 +357,8 @@ def test_interpolated_maps_match_exact_maps(small_scene, pairs):
         ("prior_hit_rate", 1.0),
         ("num_threads", 0),
         ("margin_px", -1),
+        ("template_length_px", 2),
+        ("template_length_px", -5),
     ],
 )
 def test_verify_options_are_checked(field, value):

@@ -180,3 +180,16 @@ def test_a_short_piece_beside_a_long_wire_is_not_joined_to_it():
     pts = np.r_[long_pts, short_pts]
     joined, into = merge_pieces(_pieces(long_pts, short_pts), pts, 90.0, WiresOptions())
     assert len(joined) == 2 and into == {}
+
+
+def test_tower_member_found_when_some_wires_end_short_of_the_tower():
+    """The shared cross flight: the top conductors are seen only to 8-10 m short of the
+    tower, so the lower ends run from -49 to -39; the tower is where the outermost meet,
+    and the 6.5 m piece at 3 m height across it is a member."""
+    lows = [(-39.5, 36.5), (-39.7, -10.4), (-49.0, 38.7), (-47.7, 49.4), (-47.6, 49.1)]
+    wires = [_piece(k, 4.0, lo, hi, 25.0) for k, (lo, hi) in enumerate(lows)]
+    wires += [_piece(5, -4.2, -44.9, 39.1, 26.0), _piece(6, -5.3, -40.8, 32.7, 30.0)]
+    wires.append(_piece(7, -3.0, -52.6, -46.1, 3.2))
+    found = dict(support_members(wires, np.array([1.0, 0.0]), long_length=25.0))
+    assert set(found) == {7}
+    assert found[7] == pytest.approx(-47.6, abs=0.5)
