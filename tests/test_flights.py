@@ -19,6 +19,7 @@ import json
 import pytest
 
 from colmap_powerline.evaluate import Evaluation, evaluate
+from colmap_powerline.pairs import PairsOptions
 from colmap_powerline.pipeline import ReconstructionOptions, ReconstructionResult, reconstruct
 from colmap_powerline.synthetic import (
     FlightPattern,
@@ -74,7 +75,7 @@ def _check_run(result: ReconstructionResult, ev: Evaluation) -> None:
     reported points farther than 30 cm from every true wire."""
     assert result.corridor.measured and result.corridor.from_images
     assert abs((result.corridor.azimuth_deg - AZIMUTH + 90) % 180 - 90) < 1.0
-    assert 2 <= len(result.pairs) <= 12
+    assert 2 <= len(result.pairs) <= PairsOptions().max_pairs
     assert len(result.supports) == len(result.wires) > 0
     assert all(s.confidence is not None and s.confidence >= 0.99 for s in result.supports)
     assert ev.ghost_wires == 0
