@@ -35,7 +35,7 @@ class PairsOptions:
     max_candidates: int = 5  # candidate directions found in the images
     probe_candidates: int = 5  # of those, the strongest this many are probed in 3D (wires
     # are thin: their image lines are often weaker than a road's or a field's)
-    probe_pairs: int = 2  # pairs triangulated and verified to probe a direction
+    probe_pairs: int = 4  # pairs triangulated and verified to probe a direction
     probe_views: int = 8  # the views nearest those pairs that verify the probe
     probe_bands: int = 2  # bands across a direction probed: the densest, and (when it gave
     # no wire) all of them (a road may outdo the wires)

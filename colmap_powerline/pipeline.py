@@ -154,7 +154,7 @@ def probe_corridor(scene: Scene, options: ReconstructionOptions) -> WireCorridor
     """Find where the wires are by measuring them: a few pairs per candidate direction.
 
     Long image lines run along the wires, but also along roads, field rows and shadows. For
-    each of the strongest candidate directions, two pairs crossing it are triangulated and
+    each of the strongest candidate directions, a few pairs crossing it are triangulated and
     verified in the views around them; the direction whose points form the most wire length
     is the line, and its points give the corridor's band and heights (so that pairs are
     then chosen where the wires really are, at the heights they really hang).
