@@ -37,8 +37,9 @@ class PairsOptions:
     # are thin: their image lines are often weaker than a road's or a field's)
     probe_pairs: int = 4  # pairs triangulated and verified to probe a direction
     probe_views: int = 8  # the views nearest those pairs that verify the probe
-    probe_bands: int = 2  # bands across a direction probed: the densest, and (when it gave
-    # no wire) all of them (a road may outdo the wires)
+    probe_bands: int = 2  # bands across a direction probed: the densest, and all of them
+    # (a road may outdo the wires; a few metres of something in the densest band must not
+    # stop the wider probe)
     num_direction_images: int = 6  # images used to estimate the direction and corridor
     analysis_width_px: int = 800  # those images are analysed at about this width
     scan_step_deg: float = 3.0  # orientation scan step

@@ -173,11 +173,8 @@ def probe_corridor(scene: Scene, options: ReconstructionOptions) -> WireCorridor
             scene, cands, cands.azimuths_deg[k], options.pairs, heights
         )
     ]
-    found_at: set[float] = set()  # directions whose densest band already gave wires
     for prov in probes:
         azimuth = prov.azimuth_deg
-        if azimuth in found_at:
-            continue
         try:
             pairs = select_pairs(scene, prov, probe_options, options.verify.crossing_offset)
         except InputError as e:
@@ -218,8 +215,6 @@ def probe_corridor(scene: Scene, options: ReconstructionOptions) -> WireCorridor
             len(wires),
             length,
         )
-        if wires:
-            found_at.add(azimuth)
         if wires and (best is None or length > best[0]):
             idx = np.concatenate([w.point_indices for w in wires])
             # The direction of the wires' own planes, weighted by their length (the points'
