@@ -57,10 +57,11 @@ def test_end_to_end_accuracy_and_completeness(run, medium_span):
     assert ev.ghost_wires == 0
     assert ev.outlier_share < 0.02
     assert len(result.pairs) >= 2
-    # Each image is read about 6 times (measured 181 reads of 32 images): the corridor probe
-    # triangulates and verifies two pairs per candidate direction and band before the run
-    # proper. Sharing those reads with the run is the speed issue's work; this bounds it.
-    assert len(result.decoded) <= 8 * len(result.scene)
+    # Each image is read about 8.4 times (measured 270 reads of 32 images; 181 with 2-pair
+    # probes): the corridor probe triangulates and verifies four pairs per candidate
+    # direction and band before the run proper. Sharing those reads with the run is the
+    # speed issue's work; this bounds it.
+    assert len(result.decoded) <= 9 * len(result.scene)
 
 
 def test_outputs_follow_the_contract(run, medium_span):
