@@ -56,6 +56,7 @@ from .wires import (
     absorb_points,
     merge_pieces,
     split_wires,
+    trim_wire,
 )
 
 logger = logging.getLogger(__name__)
@@ -364,6 +365,21 @@ def reconstruct(
         )
 
     supports = judge(candidates)
+    # A wire the views reject as a whole may be right along one stretch (its end went
+    # astray): that stretch, refitted, is judged again with the others.
+    trimmed = {
+        k: trim_wire(w, verified.pts_in_world, s.supported_s, corridor.azimuth_deg, options.wires)
+        for k, (w, s) in enumerate(zip(candidates, supports, strict=True))
+        if s.supported_s is not None
+        and s.height_above_ground >= options.triangulate.min_wire_height
+    }
+    if any(t is not None for t in trimmed.values()):
+        logger.info(
+            "support: %d rejected wires have a supported stretch; judging them again",
+            sum(t is not None for t in trimmed.values()),
+        )
+        candidates = [trimmed[k] or w if k in trimmed else w for k, w in enumerate(candidates)]
+        supports = judge(candidates)
     kept, supports = keep_supported(
         candidates, supports, options.support, options.triangulate.min_wire_height
     )

@@ -82,9 +82,13 @@ class WireSupport:
     # false pairing (the confidence then comes from the other views)
     height_above_ground: float  # median height of the wire above the ground surface
     advice: str | None = None  # what to fly to make weak geometry strong
+    supported_s: tuple[float, float] | None = None  # (not written) when the views reject
+    # the wire as a whole but support one stretch of it: that stretch along its plane
 
     def to_json(self) -> dict[str, Any]:
-        return asdict(self)
+        out = asdict(self)
+        del out["supported_s"]
+        return out
 
 
 @dataclass(frozen=True, eq=False)
@@ -105,6 +109,12 @@ class _ViewMeasure:
             return 0.0, 0.0, 0.0
         return 0.5 * n, float(self.hit[own].mean()), float(self.control[own].mean())
 
+
+# A wire the views reject as a whole is looked at in this many stretches along it, for
+# one they support (a true wire whose end went astray, or one partly over ground where the
+# views cannot see it).
+TRIM_BINS = 20
+MIN_TRIM_BINS = 3  # a supported stretch shorter than this many is not proposed
 
 # A wire explains other wires' stretches along its catenary continued this share of its
 # observed length past each end (a wire seen in part still hangs to its supports).
@@ -336,6 +346,56 @@ def wire_support(
                 confidence = min(confidence, 0.5)
         return confidence, length, hit, use
 
+    def stretch(k: int, others: set[int]) -> tuple[float, float] | None:
+        """The longest stretch of wire k that the views support, when that is not all of it:
+        along the wire, bins where the views hit at least halfway from chance to their hit
+        rate on true wires (bins they hardly see do not break it)."""
+        ms, cross = measured[k][0], measured[k][1]
+        if not ms:
+            return None
+        explained = [np.zeros(len(m.uv), bool) for m in ms]
+        for o in others:
+            explained = [e | x for e, x in zip(explained, on_other(k, o), strict=True)]
+        length = np.array([0.5 * (~e).sum() for e in explained])
+        informative = length >= options.min_projected_px
+        use = cross & informative if cross.any() else informative
+        if not use.any():
+            return None
+        own = [(m, ~e) for m, e, u in zip(ms, explained, use, strict=True) if u]
+        s_at = np.concatenate([m.s[o] for m, o in own])
+        hit = np.concatenate([m.hit[o] for m, o in own]).astype(np.float64)
+        control = np.concatenate([m.control[o] for m, o in own])
+        rate = np.concatenate([np.full(int(o.sum()), view_hit_rates[m.view_index]) for m, o in own])
+        rate = np.where(np.isfinite(rate), rate, typical_rate)
+        lo, hi = wires[k].s_range
+        n_bins = max(int(TRIM_BINS), 1)
+        edges = np.linspace(lo, hi, n_bins + 1)
+        b = np.clip(np.searchsorted(edges, s_at, side="right") - 1, 0, n_bins - 1)
+        count = np.bincount(b, minlength=n_bins).astype(np.float64)
+        seen = np.maximum(count, 1.0)
+        observed = np.bincount(b, hit, n_bins) / seen
+        expected = np.bincount(b, rate, n_bins) / seen
+        chance = np.bincount(b, control, n_bins) / seen
+        known = 0.5 * count >= options.min_projected_px
+        good = known & (observed >= 0.5 * (chance + expected))
+        ok = good | ~known
+        best: tuple[int, int] | None = None
+        start = None
+        for i in range(n_bins + 1):
+            if i < n_bins and ok[i]:
+                start = i if start is None else start
+                continue
+            if start is not None and good[start:i].any():
+                # Trim unknown bins at the ends of the run.
+                g = np.flatnonzero(good[start:i]) + start
+                run = (int(g[0]), int(g[-1]) + 1)
+                if best is None or run[1] - run[0] > best[1] - best[0]:
+                    best = run
+            start = None
+        if best is None or best == (0, n_bins) or best[1] - best[0] < MIN_TRIM_BINS:
+            return None
+        return float(edges[best[0]]), float(edges[best[1]])
+
     def sure(c: float | None) -> bool:
         return c is not None and c >= options.min_confidence
 
@@ -378,6 +438,7 @@ def wire_support(
                 advice=None
                 if strong or not groups
                 else _advice(wire, groups, crossing_offset * height),
+                supported_s=None if k in accepted else stretch(k, accepted - {k}),
             )
         )
     return out

@@ -256,6 +256,23 @@ def absorb_points(
     return out, taken, np.array([wires[b].wire_id for b in best[close]], np.int64)
 
 
+def trim_wire(
+    wire: FittedWire,
+    pts_in_world: F64,
+    s_range: tuple[float, float],
+    azimuth_deg: float,
+    options: WiresOptions,
+) -> FittedWire | None:
+    """The wire refitted on its points within ``s_range`` along its plane (None: too few)."""
+    s = wire.plane_coords(pts_in_world[wire.point_indices])[0]
+    idx = wire.point_indices[(s >= s_range[0]) & (s <= s_range[1])]
+    az = np.deg2rad(azimuth_deg)
+    fit = _fit(pts_in_world, idx, np.array([np.sin(az), np.cos(az)]), options)
+    if fit is None or fit.rms_residual > options.max_rms:
+        return None
+    return dataclasses.replace(fit, wire_id=wire.wire_id)
+
+
 def merge_pieces(
     wires: list[FittedWire], pts_in_world: F64, azimuth_deg: float, options: WiresOptions
 ) -> tuple[list[FittedWire], dict[int, int]]:
