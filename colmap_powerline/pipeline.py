@@ -131,11 +131,11 @@ def _detect_rectified(
     return wire_centres(wm.mask & valid, wm.response), int(wm.mask.sum())
 
 
-def crop_wire_mask(options: DetectOptions, template_length_px: int | None = None) -> WireMaskFn:
+def crop_wire_mask(options: DetectOptions, template_length_px: int = 0) -> WireMaskFn:
     """The detector verification calls on each view: only the crop where primitives land is
     searched; the length filter stays scaled to the whole image; ``template_length_px``
-    (None: the detector's own) is the line template's length there."""
-    if template_length_px is not None:
+    (0: the detector's own) is the line template's length there."""
+    if template_length_px:
         options = dataclasses.replace(options, template_length_px=template_length_px)
 
     def wire_mask(
@@ -194,7 +194,7 @@ def probe_corridor(scene: Scene, options: ReconstructionOptions) -> WireCorridor
             scene.with_images(views),
             prims,
             [(p.left.name, p.right.name) for p in pairs],
-            crop_wire_mask(options.detect, options.verify.template_length_px or None),
+            crop_wire_mask(options.detect, options.verify.template_length_px),
             azimuth,
             options.verify,
             show_progress=False,
@@ -334,7 +334,7 @@ def reconstruct(
         scene,
         primitives,
         [(p.left.name, p.right.name) for p in pairs],
-        crop_wire_mask(options.detect, options.verify.template_length_px or None),
+        crop_wire_mask(options.detect, options.verify.template_length_px),
         corridor.azimuth_deg,
         options.verify,
         options.show_progress,

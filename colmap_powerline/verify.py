@@ -446,21 +446,20 @@ def verify_primitives(
     # from false pairings; whole wires are judged afterwards (support).
     weak = n_crossing == 0
 
-    def posterior() -> F64:
+    def summed_evidence(telling_only: bool) -> F64:
+        """Each point's evidence from the views that can tell it from a false pairing
+        (``telling_only``), or from every view that sees it: on a wire already confirmed
+        as a whole, whether it is a false pairing is settled."""
         evidence = np.zeros(len(pts))
         for v, idx, hit, chance, cross in observations:
-            use = cross | weak[idx]
+            use = cross | weak[idx] if telling_only else np.ones(len(idx), bool)
             llr = _log_likelihood_ratio(hit[use], chance[use], hit_rate[v])
             np.add.at(evidence, idx[use], llr)
-        return 1.0 / (1.0 + np.exp(-np.clip(prior_logit + evidence, -50, 50)))
-
-    def wire_evidence() -> F64:
-        """Evidence that each point lies on a wire at all, from every view that sees it:
-        on a wire already confirmed as a whole, whether it is a false pairing is settled."""
-        evidence = np.zeros(len(pts))
-        for v, idx, hit, chance, _ in observations:
-            np.add.at(evidence, idx, _log_likelihood_ratio(hit, chance, hit_rate[v]))
         return evidence
+
+    def posterior() -> F64:
+        logit = prior_logit + summed_evidence(telling_only=True)
+        return 1.0 / (1.0 + np.exp(-np.clip(logit, -50, 50)))
 
     # Each view's hit rate on true points, from the points the other views confirm.
     post = posterior()
@@ -482,7 +481,7 @@ def verify_primitives(
     # whole (support) only whether they lie on a wire is in question, prior 1/2 (see
     # pipeline). Crossing views that cannot see a faint wire (textured ground, image edge)
     # no longer outvote the views that do.
-    evidence = wire_evidence()
+    evidence = summed_evidence(telling_only=False)
     pending = ~keep & (evidence > 0) & (hits >= 2)
 
     def refine(sel: Mask) -> tuple[F64, Mask]:
