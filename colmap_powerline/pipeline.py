@@ -402,6 +402,7 @@ def reconstruct(
     # On a confirmed wire, a primitive the views favour is the right match with prior 1/2
     # (not 1/K): take those that then reach the posterior, and refit.
     pending = verified.pending
+    confirmed = list(zip(wires, supports, strict=True))
     if wires:
         logit = np.log(options.verify.min_posterior / (1 - options.verify.min_posterior))
         sure = (
@@ -452,6 +453,11 @@ def reconstruct(
             len(new_pending),
             len(pending) if pending is not None else 0,
         )
+    if wires:
+        # What the wires grew into is judged again, and the support reported is that of the
+        # wire as written: a wire that took points past where it is real (a short piece by a
+        # tower grown along a false pairing) keeps the stretch the views support, or goes.
+        wires, supports = _confirm_grown(wires, confirmed, judge, options.support.min_confidence)
     labels = np.full(len(verified), -1, np.int64)
     for w in wires:
         labels[w.point_indices] = w.wire_id
@@ -536,6 +542,59 @@ def reconstruct(
             )
             timings["report"] = time.perf_counter() - t0
     return result
+
+
+def _confirm_grown(
+    wires: list[FittedWire],
+    confirmed: list[tuple[FittedWire, WireSupport]],
+    judge: Callable[[list[FittedWire]], list[WireSupport]],
+    min_confidence: float,
+) -> tuple[list[FittedWire], list[WireSupport]]:
+    """Wires that grew or were joined since they were confirmed, judged again as they are
+    now: one the views reject goes back to the confirmed pieces it grew from. A wire that did
+    not change keeps its support. Renumbered from 0."""
+    held = [set(w.point_indices.tolist()) for w in wires]
+    parts: list[list[int]] = [[] for _ in wires]  # confirmed pieces in each wire
+    for j, (c, _) in enumerate(confirmed):
+        pts = set(c.point_indices.tolist())
+        for k, h in enumerate(held):
+            if len(pts & h) > 0.5 * len(pts):
+                parts[k].append(j)
+                break
+    unchanged = [
+        len(p) == 1 and len(held[k]) == len(confirmed[p[0]][0].point_indices)
+        for k, p in enumerate(parts)
+    ]
+    if all(unchanged):
+        return wires, [
+            dataclasses.replace(confirmed[p[0]][1], wire_id=w.wire_id)
+            for w, p in zip(wires, parts, strict=True)
+        ]
+    supports = judge(wires)
+    out: list[tuple[FittedWire, WireSupport]] = []
+    for k, w in enumerate(wires):
+        now = supports[k].confidence
+        if unchanged[k]:
+            out.append((w, confirmed[parts[k][0]][1]))
+        elif now is not None and now >= min_confidence:
+            out.append((w, supports[k]))
+        else:
+            logger.info(
+                "support: wire %d (%.0f m) grew past where the views support it: back to the "
+                "%s it grew from (%s m)",
+                w.wire_id,
+                w.s_range[1] - w.s_range[0],
+                "piece" if len(parts[k]) == 1 else f"{len(parts[k])} pieces",
+                ", ".join(
+                    f"{confirmed[j][0].s_range[1] - confirmed[j][0].s_range[0]:.0f}"
+                    for j in parts[k]
+                ),
+            )
+            out.extend(confirmed[j] for j in parts[k])
+    return (
+        [dataclasses.replace(w, wire_id=i) for i, (w, _) in enumerate(out)],
+        [dataclasses.replace(s, wire_id=i) for i, (_, s) in enumerate(out)],
+    )
 
 
 def _join_pieces(

@@ -116,6 +116,16 @@ class _ViewMeasure:
 TRIM_BINS = 20
 MIN_TRIM_BINS = 3  # a supported stretch shorter than this many is not proposed
 
+# A strip confirms a wire seen only from strips along it when other wires explain less than
+# this share of what it sees of the wire (on the shared generator's area survey a false
+# pairing is explained all along from one strip, true wires 0–35 %; on the package's
+# corridor, top conductors stacked over lower ones are explained all along from the strip
+# over the line).
+MIN_OWN_SHARE = 0.5
+
+# Acceptance is repeated on the accepted set until it no longer changes, at most this often.
+MAX_SUPPORT_ROUNDS = 4
+
 # A wire explains other wires' stretches along its catenary continued this share of its
 # observed length past each end (a wire seen in part still hangs to its supports).
 EXTEND_SHARE = 0.25
@@ -308,6 +318,94 @@ def wire_support(
             overlap[(k, o)] = out_k
         return overlap[(k, o)]
 
+    def sure(c: float | None) -> bool:
+        return c is not None and c >= options.min_confidence
+
+    pixels_of = {p.view_index: p for p in wire_pixels}
+    masks: dict[int, npt.NDArray[np.bool_]] = {}  # a few views' unpacked masks
+    partner: dict[tuple[int, int, frozenset[int]], bool] = {}
+
+    def other_partner(k: int, covered: int, others: set[int], own_length: F64) -> bool:
+        """Does wire k, moved along the rays of the strip that confirms it most, meet an
+        image wire in strip ``covered`` that none of the wires ``others`` explains, as often
+        as a wire passes there?"""
+        key = (k, covered, frozenset(others))
+        if key not in partner:
+            partner[key] = _other_partner(k, covered, others, own_length)
+        return partner[key]
+
+    def _other_partner(k: int, covered: int, others: set[int], own_length: F64) -> bool:
+        ms, strip_of = measured[k][0], measured[k][5]
+        rest = strip_of != covered
+        if not rest.any():
+            return False
+        # The confirming strip: the one seeing most of the wire unexplained; its cameras lie
+        # on a line along the wire (a strip of a flight along the line).
+        by_strip = {int(g): own_length[strip_of == g].sum() for g in np.unique(strip_of[rest])}
+        best = max(by_strip, key=lambda g: by_strip[g])
+        cams = centres[[m.view_index for m, g in zip(ms, strip_of, strict=True) if g == best]]
+        wire = wires[k]
+        along = np.r_[wire.plane_direction_xy, 0.0]
+        pts = wire.polyline(1.0)
+        mean = cams.mean(axis=0)
+        ray_from = mean + np.outer((pts - mean) @ along, along)  # (n, 3) the strip's line
+        # Candidate depths: from 2 m above the ground to 5 m below the cameras.
+        ground = scene.ground_height(pts[:, :2])
+        views = [m for m, g in zip(ms, strip_of, strict=True) if g == covered]
+        # Steps of the tolerance where the covered strip's views see it move fastest.
+        probe = []
+        for m in views:
+            view = scene.images[m.view_index]
+            a = view.project(ray_from + 1.0 * (pts - ray_from))[0]
+            b = view.project(ray_from + 1.01 * (pts - ray_from))[0]
+            probe.append(np.nanmedian(np.linalg.norm(b - a, axis=1)) / 0.01)
+        px_per_unit = float(np.nanmax(probe)) if probe else 0.0
+        if not np.isfinite(px_per_unit) or px_per_unit <= 0:
+            return False
+        lam = np.arange(0.2, 2.0, tolerance_px / px_per_unit)[:2000]
+        cand = ray_from[None] + lam[:, None, None] * (pts - ray_from)[None]  # (L, n, 3)
+        valid = (cand[..., 2] >= ground[None] + 2.0) & (cand[..., 2] <= mean[2] - 5.0)
+        hits = np.zeros(len(lam))
+        count = np.zeros(len(lam))
+        for m in views:
+            p = pixels_of[m.view_index]
+            if m.view_index not in masks:
+                if len(masks) >= 8:
+                    masks.pop(next(iter(masks)))
+                masks[m.view_index] = p.near_wire()
+            near = masks[m.view_index]
+            h, w = p.shape
+            uv, _, inside = scene.images[m.view_index].project(cand.reshape(-1, 3))
+            uv = uv - [p.x0, p.y0]
+            inside &= valid.ravel()
+            inside &= (uv[:, 0] >= 0) & (uv[:, 1] >= 0) & (uv[:, 0] < w) & (uv[:, 1] < h)
+            idx = np.flatnonzero(inside)
+            x = np.floor(uv[idx, 0]).astype(np.int64)
+            y = np.floor(uv[idx, 1]).astype(np.int64)
+            on = near[y, x]
+            # Image wires the others explain, and the wire's own (where no other lies on it).
+            other_uv = [m.uv_extended] + [
+                o.uv_extended
+                for j in others
+                for o in measured[j][0]
+                if o.view_index == m.view_index
+            ]
+            if on.any():
+                d, _ = cKDTree(np.concatenate(other_uv)).query(
+                    uv[idx[on]], distance_upper_bound=radius
+                )
+                on[np.flatnonzero(on)[np.isfinite(d)]] = False
+            row = idx // len(pts)
+            hits += np.bincount(row, on, len(lam))
+            count += np.bincount(row, minlength=len(lam))
+        enough = count >= 0.25 * len(pts) * len(views)  # seen along a quarter of it
+        if not enough.any():
+            return False
+        rate = np.array([view_hit_rates[m.view_index] for m in views])
+        expected = float(np.nanmean(rate)) if np.isfinite(rate).any() else typical_rate
+        share = np.where(enough, hits / np.maximum(count, 1), 0.0)
+        return bool(share.max() >= options.min_hit_share * expected)
+
     def judge(k: int, others: set[int]) -> tuple[float | None, F64, F64, npt.NDArray[np.bool_]]:
         """(confidence, length, hit share, views used) of wire k, where the wires ``others``
         explain what they cover."""
@@ -344,6 +442,24 @@ def wire_support(
             slack = 2.0 * np.sqrt(expected * (1 - expected) / n_eff)
             if observed < options.min_hit_share * expected - slack:
                 confidence = min(confidence, 0.5)
+        if not cross.any() and sure(confidence):
+            # Seen only from strips along it, a wire is measured from two of them. Where
+            # other wires lie on most of what one strip sees of it, that strip cannot confirm
+            # it: it is either a wire hidden behind another from there (conductors or a
+            # shield stacked above each other, seen from over them) or a false pairing of
+            # image wires i and j lying on the true wire j all along from j's strip. In the
+            # second case the true wire i is missing, and its image is free in that strip:
+            # the wire goes when, moved along the rays of the strip that confirms it, it
+            # meets an image wire there that no other wire explains.
+            seen = np.array([0.5 * len(m.uv) for m in ms])
+            for g in np.unique(strip_of):
+                sel = strip_of == g
+                if (
+                    seen[sel].sum() >= options.min_projected_px
+                    and length[sel].sum() < MIN_OWN_SHARE * seen[sel].sum()
+                    and other_partner(k, int(g), others, length)
+                ):
+                    confidence = min(confidence, 0.5)
         return confidence, length, hit, use
 
     def stretch(k: int, others: set[int]) -> tuple[float, float] | None:
@@ -396,22 +512,31 @@ def wire_support(
             return None
         return float(edges[best[0]]), float(edges[best[1]])
 
-    def sure(c: float | None) -> bool:
-        return c is not None and c >= options.min_confidence
-
     # Best supported first: each wire is judged on what the wires accepted before it leave.
+    order = sorted(range(len(wires)), key=lambda k: -measured[k][4])
     accepted: set[int] = set()
-    for k in sorted(range(len(wires)), key=lambda k: -measured[k][4]):
-        if sure(judge(k, accepted)[0]):
-            accepted.add(k)
-    # Then each accepted wire against all the others: a false pairing accepted early is
-    # explained once the true wires it borrows from are in; drop the least sure, repeat.
-    while accepted:
-        scores = {k: judge(k, accepted - {k})[0] for k in accepted}
-        worst = min(accepted, key=lambda k: -1.0 if scores[k] is None else scores[k])
-        if sure(scores[worst]):
+    for _ in range(MAX_SUPPORT_ROUNDS):
+        before = set(accepted)
+        for k in order:
+            if k not in accepted and sure(judge(k, accepted)[0]):
+                accepted.add(k)
+        # Then each accepted wire against all the others: a false pairing accepted early is
+        # explained once the true wires it borrows from are in; drop the least sure, repeat.
+        while accepted:
+            scores = {k: judge(k, accepted - {k})[0] for k in accepted}
+            # Equal scores (two wires each explained by the other from one strip): the
+            # weaker goes.
+            worst = min(
+                accepted,
+                key=lambda k: (-1.0 if scores[k] is None else scores[k], measured[k][4]),
+            )
+            if sure(scores[worst]):
+                break
+            accepted.discard(worst)
+        # A wire rejected while the wires it lies beside were not yet in (an image wire of
+        # theirs then looked free to pair with) is judged again on the final set.
+        if accepted == before:
             break
-        accepted.discard(worst)
 
     out = []
     for k, wire in enumerate(wires):
@@ -450,8 +575,11 @@ def _extent(wire: FittedWire) -> float:
 
 # Ends of long wires this close together along the line mark one support.
 SUPPORT_END_SPREAD = 5.0
-# A short piece reaching at least this far past a support on both sides is part of it.
+# A short piece reaching at least this far into the span past a support and this far out
+# past the outermost end of the long wires there is part of it (the ends of pieces are
+# uncertain by a few tenths of a metre).
 SUPPORT_OVERHANG = 1.0
+SUPPORT_OVERHANG_OUT = 0.5
 
 
 def support_members(
@@ -487,13 +615,18 @@ def support_members(
         for group in np.split(pos, breaks):
             outer = group[group <= group[0] + SUPPORT_END_SPREAD]
             if len(outer) >= 2:
-                supports.append(float(sign * np.median(outer)))
+                supports.append((sign, float(sign * np.median(outer)), float(sign * outer[0])))
     out = []
     for k, (w, (lo, hi)) in enumerate(zip(wires, spans, strict=True)):
         if _extent(w) >= long_length:
             continue
-        for at in supports:
-            if lo <= at - SUPPORT_OVERHANG and hi >= at + SUPPORT_OVERHANG:
+        for sign, at, outermost in supports:
+            # Along the outward direction: the piece's outer and inner ends.
+            outer_end, inner_end = (lo, hi) if sign > 0 else (-hi, -lo)
+            if (
+                outer_end <= sign * outermost - SUPPORT_OVERHANG_OUT
+                and inner_end >= sign * at + SUPPORT_OVERHANG
+            ):
                 out.append((k, at))
                 break
     return out
