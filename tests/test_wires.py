@@ -7,7 +7,8 @@ import dataclasses
 import numpy as np
 import pytest
 
-from colmap_powerline.support import support_members
+from colmap_powerline.pipeline import _confirm_grown
+from colmap_powerline.support import WireSupport, support_members
 from colmap_powerline.synthetic import SyntheticSpanOptions, TrueWire, build_span
 from colmap_powerline.wires import (
     FittedWire,
@@ -193,3 +194,65 @@ def test_tower_member_found_when_some_wires_end_short_of_the_tower():
     found = dict(support_members(wires, np.array([1.0, 0.0]), long_length=25.0))
     assert set(found) == {7}
     assert found[7] == pytest.approx(-47.6, abs=0.5)
+
+
+def test_tower_member_reaching_just_past_the_conductor_ends():
+    """The package's corridor: the conductors end within 0.7 m of each other at the tower;
+    a 7 m piece at conductor height reaches 0.95 m past their median end, 0.65 m past the
+    outermost, and was kept (it then grew along a false pairing into a 68 m wire). A
+    conductor piece ending within the ends' spread is not a member."""
+    ends = [-50.6, -50.5, -50.3, -50.3, -50.3, -49.9]
+    wires = [_piece(k, 4.0 * (-1) ** k, lo, 49.0, 21.0 + k) for k, lo in enumerate(ends)]
+    wires.append(_piece(6, 0.5, -51.25, -44.4, 21.3))
+    wires.append(_piece(7, 4.5, -50.55, -30.0, 24.0))
+    found = dict(support_members(wires, np.array([1.0, 0.0]), long_length=25.0))
+    assert set(found) == {6}
+    assert found[6] == pytest.approx(-50.3, abs=0.2)
+
+
+def _support(wire_id: int, confidence: float) -> WireSupport:
+    return WireSupport(
+        wire_id=wire_id,
+        views=10,
+        strips=3,
+        crossing_views=4,
+        hit_rate=0.9,
+        crossing_hit_rate=0.9,
+        chance=0.05,
+        confidence=confidence,
+        geometry="strong",
+        height_above_ground=20.0,
+    )
+
+
+def test_grown_wires_are_judged_again_and_fall_back_to_their_pieces():
+    """After the confirmed wires took more points: an unchanged wire keeps its support
+    without being judged; a grown one the views still confirm gets its new support; a
+    grown one they reject goes back to the confirmed piece it grew from."""
+    pieces = [
+        dataclasses.replace(_piece(0, 4.0, -40.0, 40.0, 21.0), point_indices=np.arange(0, 10)),
+        dataclasses.replace(_piece(1, -4.0, -30.0, 30.0, 21.0), point_indices=np.arange(10, 20)),
+        dataclasses.replace(_piece(2, 0.0, -50.0, -44.0, 21.0), point_indices=np.arange(20, 30)),
+    ]
+    confirmed = [(w, _support(w.wire_id, 1.0)) for w in pieces]
+    grown = [
+        pieces[0],
+        dataclasses.replace(pieces[1], s_range=(-48.0, 48.0), point_indices=np.r_[10:20, 60:80]),
+        dataclasses.replace(pieces[2], s_range=(-50.0, 18.0), point_indices=np.r_[20:30, 40:60]),
+    ]
+    judged = []
+
+    def judge(wires):
+        judged.append([w.wire_id for w in wires])
+        return [_support(w.wire_id, 0.2 if w.wire_id == 2 else 1.0) for w in wires]
+
+    wires, supports = _confirm_grown(grown, confirmed, judge, 0.99)
+    assert judged == [[0, 1, 2]]
+    assert [w.s_range for w in wires] == [(-40.0, 40.0), (-48.0, 48.0), (-50.0, -44.0)]
+    assert [w.wire_id for w in wires] == [s.wire_id for s in supports] == [0, 1, 2]
+    assert all(s.confidence == 1.0 for s in supports)
+    assert len(wires[2].point_indices) == 10
+
+    # Nothing grew: nothing is judged.
+    wires, supports = _confirm_grown(pieces, confirmed, judge, 0.99)
+    assert len(judged) == 1 and [w.s_range for w in wires] == [w.s_range for w in pieces]
