@@ -457,7 +457,9 @@ def reconstruct(
         # What the wires grew into is judged again, and the support reported is that of the
         # wire as written: a wire that took points past where it is real (a short piece by a
         # tower grown along a false pairing) keeps the stretch the views support, or goes.
-        wires, supports = _confirm_grown(wires, confirmed, judge, options.support.min_confidence)
+        wires, supports = _confirm_grown(
+            wires, confirmed, judge, verified.pts_in_world, corridor.azimuth_deg, options
+        )
     labels = np.full(len(verified), -1, np.int64)
     for w in wires:
         labels[w.point_indices] = w.wire_id
@@ -548,11 +550,15 @@ def _confirm_grown(
     wires: list[FittedWire],
     confirmed: list[tuple[FittedWire, WireSupport]],
     judge: Callable[[list[FittedWire]], list[WireSupport]],
-    min_confidence: float,
+    pts_in_world: F64,
+    azimuth_deg: float,
+    options: ReconstructionOptions,
 ) -> tuple[list[FittedWire], list[WireSupport]]:
     """Wires that grew or were joined since they were confirmed, judged again as they are
-    now: one the views reject goes back to the confirmed pieces it grew from. A wire that did
-    not change keeps its support. Renumbered from 0."""
+    now, with all the others. One the views reject is cut back to the stretch they support,
+    or else goes back to the confirmed pieces it grew from, each judged again (a piece that
+    a better wire now explains goes). A wire that did not change keeps its support.
+    Renumbered from 0."""
     held = [set(w.point_indices.tolist()) for w in wires]
     parts: list[list[int]] = [[] for _ in wires]  # confirmed pieces in each wire
     for j, (c, _) in enumerate(confirmed):
@@ -570,27 +576,70 @@ def _confirm_grown(
             dataclasses.replace(confirmed[p[0]][1], wire_id=w.wire_id)
             for w, p in zip(wires, parts, strict=True)
         ]
-    supports = judge(wires)
-    out: list[tuple[FittedWire, WireSupport]] = []
-    for k, w in enumerate(wires):
-        now = supports[k].confidence
-        if unchanged[k]:
-            out.append((w, confirmed[parts[k][0]][1]))
-        elif now is not None and now >= min_confidence:
-            out.append((w, supports[k]))
-        else:
-            logger.info(
-                "support: wire %d (%.0f m) grew past where the views support it: back to the "
-                "%s it grew from (%s m)",
-                w.wire_id,
-                w.s_range[1] - w.s_range[0],
-                "piece" if len(parts[k]) == 1 else f"{len(parts[k])} pieces",
-                ", ".join(
-                    f"{confirmed[j][0].s_range[1] - confirmed[j][0].s_range[0]:.0f}"
-                    for j in parts[k]
-                ),
-            )
-            out.extend(confirmed[j] for j in parts[k])
+
+    def ok(s: WireSupport) -> bool:
+        return s.confidence is not None and s.confidence >= options.support.min_confidence
+
+    def length(w: FittedWire) -> str:
+        return f"{w.s_range[1] - w.s_range[0]:.0f} m"
+
+    # Per final wire: the wires standing for it, their supports once settled, and what was
+    # tried (0: as grown, 1: cut back, 2: its confirmed pieces).
+    entries: list[tuple[list[FittedWire], list[WireSupport] | None, int, int]] = [
+        ([w], [confirmed[parts[k][0]][1]] if unchanged[k] else None, 0, k)
+        for k, w in enumerate(wires)
+    ]
+    for _ in range(3):
+        if all(settled is not None for _, settled, _, _ in entries):
+            break
+        judged = iter(judge([w for ws, _, _, _ in entries for w in ws]))
+        step: list[tuple[list[FittedWire], list[WireSupport] | None, int, int]] = []
+        for ws, settled, stage, k in entries:
+            got = [next(judged) for _ in ws]
+            if settled is not None:
+                step.append((ws, settled, stage, k))
+                continue
+            good = [(w, g) for w, g in zip(ws, got, strict=True) if ok(g)]
+            if stage == 2 or len(good) == len(ws):
+                if len(good) < len(ws):
+                    logger.info(
+                        "support: wire %d: %d of the %d pieces it grew from are explained by "
+                        "better wires now and go",
+                        wires[k].wire_id,
+                        len(ws) - len(good),
+                        len(ws),
+                    )
+                step.append(([w for w, _ in good], [g for _, g in good], stage, k))
+                continue
+            cut = None
+            supported = got[0].supported_s
+            if stage == 0 and supported is not None:
+                cut = trim_wire(ws[0], pts_in_world, supported, azimuth_deg, options.wires)
+            if cut is not None:
+                logger.info(
+                    "support: wire %d (%s) grew past where the views support it: cut back to %s",
+                    wires[k].wire_id,
+                    length(ws[0]),
+                    length(cut),
+                )
+                step.append(([cut], None, 1, k))
+            else:
+                pieces = [confirmed[j][0] for j in parts[k]]
+                logger.info(
+                    "support: wire %d (%s) grew past where the views support it: back to the "
+                    "confirmed pieces it grew from (%s)",
+                    wires[k].wire_id,
+                    length(wires[k]),
+                    ", ".join(length(p) for p in pieces),
+                )
+                step.append((pieces, None, 2, k))
+        entries = step
+    out = [
+        (w, s)
+        for ws, settled, _, _ in entries
+        if settled is not None
+        for w, s in zip(ws, settled, strict=True)
+    ]
     return (
         [dataclasses.replace(w, wire_id=i) for i, (w, _) in enumerate(out)],
         [dataclasses.replace(s, wire_id=i) for i, (_, s) in enumerate(out)],

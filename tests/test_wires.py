@@ -7,7 +7,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from colmap_powerline.pipeline import _confirm_grown
+from colmap_powerline.pipeline import ReconstructionOptions, _confirm_grown
 from colmap_powerline.support import WireSupport, support_members
 from colmap_powerline.synthetic import SyntheticSpanOptions, TrueWire, build_span
 from colmap_powerline.wires import (
@@ -210,7 +210,7 @@ def test_tower_member_reaching_just_past_the_conductor_ends():
     assert found[6] == pytest.approx(-50.3, abs=0.2)
 
 
-def _support(wire_id: int, confidence: float) -> WireSupport:
+def _support(wire_id: int, confidence: float, supported_s=None) -> WireSupport:
     return WireSupport(
         wire_id=wire_id,
         views=10,
@@ -222,37 +222,62 @@ def _support(wire_id: int, confidence: float) -> WireSupport:
         confidence=confidence,
         geometry="strong",
         height_above_ground=20.0,
+        supported_s=supported_s,
     )
 
 
-def test_grown_wires_are_judged_again_and_fall_back_to_their_pieces():
-    """After the confirmed wires took more points: an unchanged wire keeps its support
-    without being judged; a grown one the views still confirm gets its new support; a
-    grown one they reject goes back to the confirmed piece it grew from."""
-    pieces = [
-        dataclasses.replace(_piece(0, 4.0, -40.0, 40.0, 21.0), point_indices=np.arange(0, 10)),
-        dataclasses.replace(_piece(1, -4.0, -30.0, 30.0, 21.0), point_indices=np.arange(10, 20)),
-        dataclasses.replace(_piece(2, 0.0, -50.0, -44.0, 21.0), point_indices=np.arange(20, 30)),
+def test_grown_wires_are_judged_again():
+    """After the confirmed wires took more points: an unchanged wire keeps its support and
+    is not judged on its own; a grown one the views still confirm gets its new support; one
+    they reject only past a stretch is cut back to it; one they reject all along goes back to
+    the pieces it grew from, which are judged again with the rest (one that a better wire
+    now explains goes)."""
+    rng = np.random.default_rng(0)
+    lines = [(4.0, 21.0), (-4.0, 21.0), (0.0, 25.0), (8.0, 30.0), (9.0, 33.0)]
+    s = np.arange(-50.0, 50.0, 0.5)
+    pts = np.concatenate(
+        [np.c_[s, np.full(len(s), y), np.full(len(s), z)] for y, z in lines]
+    ) + rng.normal(0, 0.01, (len(lines) * len(s), 3))
+    n = len(s)
+
+    def piece(k, lo, hi):
+        idx = k * n + np.flatnonzero((s >= lo) & (s <= hi))
+        (w,) = split_wires(pts[idx], 90.0)
+        return dataclasses.replace(w, wire_id=k, point_indices=idx[w.point_indices])
+
+    confirmed_wires = [
+        piece(0, -40, 40),
+        piece(1, -30, 30),
+        piece(2, -50, -20),
+        piece(3, -50, -30),
+        piece(3, 30, 50),
     ]
-    confirmed = [(w, _support(w.wire_id, 1.0)) for w in pieces]
-    grown = [
-        pieces[0],
-        dataclasses.replace(pieces[1], s_range=(-48.0, 48.0), point_indices=np.r_[10:20, 60:80]),
-        dataclasses.replace(pieces[2], s_range=(-50.0, 18.0), point_indices=np.r_[20:30, 40:60]),
-    ]
-    judged = []
+    confirmed = [(w, _support(w.wire_id, 1.0)) for w in confirmed_wires]
+    grown = [piece(0, -40, 40), piece(1, -48, 48), piece(2, -50, 40), piece(3, -50, 50)]
+    calls = []
 
     def judge(wires):
-        judged.append([w.wire_id for w in wires])
-        return [_support(w.wire_id, 0.2 if w.wire_id == 2 else 1.0) for w in wires]
+        calls.append([(w.wire_id, round(w.s_range[1] - w.s_range[0])) for w in wires])
+        out = []
+        for w in wires:
+            extent = w.s_range[1] - w.s_range[0]
+            if w.wire_id == 2 and extent > 50:  # right only over its first 50 m
+                out.append(_support(2, 0.3, supported_s=(w.s_range[0], w.s_range[0] + 50)))
+            elif w.wire_id == 3 and (extent > 50 or w.s_range[0] > 0):  # a false join, and
+                out.append(_support(3, 0.3))  # a piece now explained by a better wire
+            else:
+                out.append(_support(w.wire_id, 1.0))
+        return out
 
-    wires, supports = _confirm_grown(grown, confirmed, judge, 0.99)
-    assert judged == [[0, 1, 2]]
-    assert [w.s_range for w in wires] == [(-40.0, 40.0), (-48.0, 48.0), (-50.0, -44.0)]
-    assert [w.wire_id for w in wires] == [s.wire_id for s in supports] == [0, 1, 2]
+    wires, supports = _confirm_grown(grown, confirmed, judge, pts, 90.0, ReconstructionOptions())
+    extents = [round(w.s_range[1] - w.s_range[0]) for w in wires]
+    assert extents == [80, 96, 50, 20]
+    assert [w.wire_id for w in wires] == [s.wire_id for s in supports] == [0, 1, 2, 3]
     assert all(s.confidence == 1.0 for s in supports)
-    assert len(wires[2].point_indices) == 10
+    assert len(calls) == 2 and (0, 80) in calls[0]
 
     # Nothing grew: nothing is judged.
-    wires, supports = _confirm_grown(pieces, confirmed, judge, 0.99)
-    assert len(judged) == 1 and [w.s_range for w in wires] == [w.s_range for w in pieces]
+    wires, supports = _confirm_grown(
+        confirmed_wires, confirmed, judge, pts, 90.0, ReconstructionOptions()
+    )
+    assert len(calls) == 2 and len(wires) == len(confirmed_wires)
