@@ -557,8 +557,8 @@ def _confirm_grown(
     """Wires that grew or were joined since they were confirmed, judged again as they are
     now, with all the others. One the views reject is cut back to the stretch they support,
     or else goes back to the confirmed pieces it grew from, each judged again (a piece that
-    a better wire now explains goes). A wire that did not change keeps its support.
-    Renumbered from 0."""
+    a better wire now explains goes; its points join a wire they lie on). A wire that did not
+    change keeps its support. Renumbered from 0."""
     held = [set(w.point_indices.tolist()) for w in wires]
     parts: list[list[int]] = [[] for _ in wires]  # confirmed pieces in each wire
     for j, (c, _) in enumerate(confirmed):
@@ -589,6 +589,7 @@ def _confirm_grown(
         ([w], [confirmed[parts[k][0]][1]] if unchanged[k] else None, 0, k)
         for k, w in enumerate(wires)
     ]
+    gone: list[npt.NDArray[np.int64]] = []
     for _ in range(3):
         if all(settled is not None for _, settled, _, _ in entries):
             break
@@ -604,11 +605,12 @@ def _confirm_grown(
                 if len(good) < len(ws):
                     logger.info(
                         "support: wire %d: %d of the %d pieces it grew from are explained by "
-                        "better wires now and go",
+                        "better wires now and go (their points to a wire they lie on)",
                         wires[k].wire_id,
                         len(ws) - len(good),
                         len(ws),
                     )
+                    gone += [w.point_indices for w, g in zip(ws, got, strict=True) if not ok(g)]
                 step.append(([w for w, _ in good], [g for _, g in good], stage, k))
                 continue
             cut = None
@@ -640,10 +642,16 @@ def _confirm_grown(
         if settled is not None
         for w, s in zip(ws, settled, strict=True)
     ]
-    return (
-        [dataclasses.replace(w, wire_id=i) for i, (w, _) in enumerate(out)],
-        [dataclasses.replace(s, wire_id=i) for i, (_, s) in enumerate(out)],
-    )
+    kept = [dataclasses.replace(w, wire_id=i) for i, (w, _) in enumerate(out)]
+    if gone:
+        # A piece explained by one wire all along is a stretch of it that was not joined:
+        # its points go to the wire whose curve they lie on (a false pairing's lie on none).
+        owned = [w.point_indices for w in kept]
+        free = np.setdiff1d(
+            np.concatenate(gone), np.concatenate(owned) if owned else np.zeros(0, np.int64)
+        ).astype(np.int64)
+        kept, _, _ = absorb_points(kept, pts_in_world, free, azimuth_deg, options.wires)
+    return kept, [dataclasses.replace(s, wire_id=i) for i, (_, s) in enumerate(out)]
 
 
 def _join_pieces(
