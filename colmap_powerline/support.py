@@ -406,9 +406,16 @@ def wire_support(
         share = np.where(enough, hits / np.maximum(count, 1), 0.0)
         return bool(share.max() >= options.min_hit_share * expected)
 
-    def judge(k: int, others: set[int]) -> tuple[float | None, F64, F64, npt.NDArray[np.bool_]]:
-        """(confidence, length, hit share, views used) of wire k, where the wires ``others``
-        explain what they cover."""
+    def judge(
+        k: int, others: set[int]
+    ) -> tuple[float | None, F64, F64, npt.NDArray[np.bool_], bool]:
+        """(confidence, length, hit share, views used, whether views that can tell decided)
+        of wire k, where the wires ``others`` explain what they cover.
+
+        Views that can tell decide wherever they see enough of the wire to (even when what
+        they see is all explained by other wires). When they see too little to confirm it
+        and do not reject it either (a 70 px glimpse in one view), the wire is judged as
+        one that no view can tell: by every strip that sees it."""
         ms, cross = measured[k][0], measured[k][1]
         explained = [np.zeros(len(m.uv), bool) for m in ms]
         for o in others:
@@ -417,31 +424,52 @@ def wire_support(
         length, hit, control = rows.T
         chance = np.maximum(control, [density[m.view_index] for m in ms])
         informative = length >= options.min_projected_px
-        # Views that can tell decide wherever there are any (even when what they see of the
-        # wire is all explained by other wires); only without them do the others speak.
+        rate = np.array([view_hit_rates[m.view_index] for m in ms])
+        rate = np.where(np.isfinite(rate), rate, typical_rate)
+        seen = np.array([0.5 * len(m.uv) for m in ms])
+        if (cross & (seen >= options.min_projected_px)).any():
+            confidence, rejected = decide(k, others, cross, length, hit, chance, rate)
+            # None: what they see of it other wires explain.
+            if sure(confidence) or rejected or confidence is None:
+                return confidence, length, hit, cross & informative, True
+        confidence, _ = decide(k, others, np.zeros(len(ms), bool), length, hit, chance, rate)
+        return confidence, length, hit, informative, False
+
+    def decide(
+        k: int,
+        others: set[int],
+        cross: npt.NDArray[np.bool_],
+        length: F64,
+        hit: F64,
+        chance: F64,
+        rate: F64,
+    ) -> tuple[float | None, bool]:
+        """(confidence, whether the views' hits reject it) of wire k from the views that can
+        tell (``cross``) or, without any, from every strip."""
+        ms = measured[k][0]
+        informative = length >= options.min_projected_px
         use = cross & informative if cross.any() else informative
         if not use.any():
-            return None, length, hit, use
+            return None, False
         llr = _evidence(length[use], hit[use], chance[use], options.correlation_length_px)
         confidence = float(1 / (1 + np.exp(-min(llr, 50.0))))
+        rejected = False
         # A real wire lands on wire pixels in every view about as often as that view sees
         # true wires; a false pairing does so only in the views along one of its cameras,
         # and not where the wires slope towards their supports.
         # Where no view can tell, it must do so from every strip that sees a stretch no
         # other wire explains (a false pairing lies on wire i from one and on j from the
-        # other); elsewhere over all views together.
-        rate = np.array([view_hit_rates[m.view_index] for m in ms])
-        rate = np.where(np.isfinite(rate), rate, typical_rate)
+        # other); elsewhere over the views that can tell together.
         strip_of = measured[k][5] if not cross.any() else np.zeros(len(ms), np.int64)
-        for g in np.unique(strip_of[informative]):
-            sel = informative & (strip_of == g)
+        for g in np.unique(strip_of[use]):
+            sel = use & (strip_of == g)
             expected = float(np.average(rate[sel], weights=length[sel]))
             observed = float(np.average(hit[sel], weights=length[sel]))
             # Short of it beyond what chance along a short stretch explains.
             n_eff = max(float(length[sel].sum()) / options.correlation_length_px, 1.0)
             slack = 2.0 * np.sqrt(expected * (1 - expected) / n_eff)
             if observed < options.min_hit_share * expected - slack:
-                confidence = min(confidence, 0.5)
+                confidence, rejected = min(confidence, 0.5), True
         if not cross.any() and sure(confidence):
             # Seen only from strips along it, a wire is measured from two of them. Where
             # other wires lie on most of what one strip sees of it, that strip cannot confirm
@@ -460,7 +488,7 @@ def wire_support(
                     and other_partner(k, int(g), others, length)
                 ):
                     confidence = min(confidence, 0.5)
-        return confidence, length, hit, use
+        return confidence, rejected
 
     def stretch(k: int, others: set[int]) -> tuple[float, float] | None:
         """The longest stretch of wire k that the views support, when that is not all of it:
@@ -541,8 +569,8 @@ def wire_support(
     out = []
     for k, wire in enumerate(wires):
         ms, cross, groups, height = measured[k][:4]
-        confidence, length, hit, use = judge(k, accepted - {k})
-        strong = bool(cross.any())
+        confidence, length, hit, use, told = judge(k, accepted - {k})
+        strong = told  # views that can tell decided (not a glimpse in one of them)
         all_len = np.maximum(0.5 * np.array([len(m.uv) for m in ms]), 1e-9)
         all_hit = np.array([m.hit.mean() for m in ms])
         all_chance = np.array([m.control.mean() for m in ms])
