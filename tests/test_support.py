@@ -171,3 +171,49 @@ def test_two_strips_drop_a_false_pairing_hidden_behind_a_true_wire(two_strips):
     assert by_id[20].confidence is None or by_id[20].confidence < 0.99, by_id[20]
     for k in BOTH:
         assert by_id[k].confidence is not None and by_id[k].confidence >= 0.99, by_id[k]
+
+
+def test_a_glimpse_from_a_view_that_can_tell_leaves_the_wire_to_the_strips(two_strips):
+    """A view of the third strip can tell (it is offset across the wires from both cameras of
+    the pair) but searched only a 40 px square around conductor 0, over dense texture, so it
+    sees a few tens of pixels of it: too little to confirm it (the shared corridor seed 2:
+    72 px, chance 43 %, for a conductor 14 views see on 89-100 % of 1500 px). It does not
+    reject it either, so the two strips that see it all along decide: the conductor stays,
+    reported weak, with its one crossing view. A view that sees it all along and misses it
+    does reject it."""
+    span, scene, pixels, pair_centres = two_strips
+    d = span.wires[0].direction_xy
+    wires = [
+        _wire(span.wires[k].points(np.linspace(2.0, span.wires[k].length_m - 2.0, 400)), k, d)
+        for k in BOTH
+    ]
+    # The third strip's view that sees most of conductor 0, and the point of it nearest to
+    # that image's centre.
+    along = span.wires[0].points(np.linspace(2.0, span.wires[0].length_m - 2.0, 400))
+    third = max(
+        (v for v, s in zip(span.views, span.strips, strict=True) if s == 2),
+        key=lambda v: int(v.project(along)[2].sum()),
+    )
+    uv = third.project(along)[0]
+    centre = uv[np.nanargmin(np.linalg.norm(uv - [third.width / 2, third.height / 2], axis=1))]
+    scene3 = dataclasses.replace(scene, images=(*scene.images, third))
+    v3 = len(scene.images)
+    full = _masks(span, scene3.with_images([third]), BOTH)[0]
+    mask = full.near_wire()
+    u, v = np.floor(centre).astype(int)
+    # Over dense texture: 40 % of the crop's pixels look like wire.
+    clutter = np.random.default_rng(0).random((40, 40)) < 0.4
+    crop = mask[v - 20 : v + 20, u - 20 : u + 20] | clutter
+    glimpse = ViewWirePixels.pack(v3, u - 20, v - 20, crop, full.direction_deg)
+
+    supports = _judge(scene3, [*pixels, glimpse], pair_centres, wires)
+    s0 = supports[0]
+    assert s0.crossing_views == 1 and s0.geometry == "weak", s0
+    assert s0.confidence is not None and s0.confidence >= 0.99, s0
+
+    # The same view searched all over, and blind to the wires: it sees conductor 0 along
+    # hundreds of pixels and never on a wire.
+    blind = ViewWirePixels.pack(v3, 0, 0, np.zeros_like(mask), full.direction_deg)
+    s0 = _judge(scene3, [*pixels, blind], pair_centres, wires)[0]
+    assert s0.crossing_views == 1 and s0.geometry == "strong", s0
+    assert s0.confidence is not None and s0.confidence < 0.99, s0
