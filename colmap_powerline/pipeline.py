@@ -63,6 +63,10 @@ logger = logging.getLogger(__name__)
 
 F64 = npt.NDArray[np.float64]
 
+# A confirmed piece whose points lie this close (median) to another wire's curve is a stretch
+# of that wire (a third of a metre: a catenary continued 20-30 m past its points).
+CONTINUATION_DISTANCE = 0.3
+
 # Confirmed wires take the points the views favour in steps of ``WiresOptions.max_gap`` past
 # their ends; this many steps reach past any span.
 MAX_ABSORB_STEPS = 40
@@ -593,7 +597,8 @@ def _confirm_grown(
     for _ in range(3):
         if all(settled is not None for _, settled, _, _ in entries):
             break
-        judged = iter(judge([w for ws, _, _, _ in entries for w in ws]))
+        all_wires = [w for ws, _, _, _ in entries for w in ws]
+        judged = iter(judge(all_wires))
         step: list[tuple[list[FittedWire], list[WireSupport] | None, int, int]] = []
         for ws, settled, stage, k in entries:
             got = [next(judged) for _ in ws]
@@ -601,6 +606,19 @@ def _confirm_grown(
                 step.append((ws, settled, stage, k))
                 continue
             good = [(w, g) for w, g in zip(ws, got, strict=True) if ok(g)]
+            if stage == 2:
+                # A confirmed piece that another wire explains all along because it is a
+                # stretch of that wire (its points lie on that wire's curve continued: the
+                # two were not joined) stays, with the support it was confirmed with; one
+                # that lies on no wire (a false pairing explained from each strip by another
+                # wire) goes.
+                others = [x for x in all_wires if all(x is not w for w in ws)]
+                for w, g, j in zip(ws, got, parts[k], strict=True):
+                    if g.confidence is None and any(
+                        np.median(x.distance(pts_in_world[w.point_indices])) < CONTINUATION_DISTANCE
+                        for x in others
+                    ):
+                        good.append((w, confirmed[j][1]))
             if stage == 2 or len(good) == len(ws):
                 if len(good) < len(ws):
                     logger.info(
@@ -610,7 +628,7 @@ def _confirm_grown(
                         len(ws) - len(good),
                         len(ws),
                     )
-                    gone += [w.point_indices for w, g in zip(ws, got, strict=True) if not ok(g)]
+                    gone += [w.point_indices for w in ws if all(w is not x for x, _ in good)]
                 step.append(([w for w, _ in good], [g for _, g in good], stage, k))
                 continue
             cut = None

@@ -210,7 +210,7 @@ def test_tower_member_reaching_just_past_the_conductor_ends():
     assert found[6] == pytest.approx(-50.3, abs=0.2)
 
 
-def _support(wire_id: int, confidence: float, supported_s=None) -> WireSupport:
+def _support(wire_id: int, confidence: float | None, supported_s=None) -> WireSupport:
     return WireSupport(
         wire_id=wire_id,
         views=10,
@@ -246,14 +246,28 @@ def test_grown_wires_are_judged_again():
         return dataclasses.replace(w, wire_id=k, point_indices=idx[w.point_indices])
 
     confirmed_wires = [
-        piece(0, -40, 40),
+        piece(0, -40, 20),
         piece(1, -30, 30),
         piece(2, -50, -20),
         piece(3, -50, -30),
         piece(3, 30, 50),
     ]
+    # A stretch of wire 0 past its end that was not joined to it, then falsely joined to
+    # points of the wire above.
+    tail = np.flatnonzero((s >= 25) & (s <= 50))
+    (w4,) = split_wires(pts[tail], 90.0)
+    stretch = dataclasses.replace(w4, wire_id=4, point_indices=tail[w4.point_indices])
+    both = np.r_[tail, 4 * n + tail]
+    confirmed_wires.append(stretch)
     confirmed = [(w, _support(w.wire_id, 1.0)) for w in confirmed_wires]
-    grown = [piece(0, -40, 40), piece(1, -48, 48), piece(2, -50, 40), piece(3, -50, 50)]
+    false_join = dataclasses.replace(stretch, point_indices=both)
+    grown = [
+        piece(0, -40, 20),
+        piece(1, -48, 48),
+        piece(2, -50, 40),
+        piece(3, -50, 50),
+        false_join,
+    ]
     calls = []
 
     def judge(wires):
@@ -265,16 +279,19 @@ def test_grown_wires_are_judged_again():
                 out.append(_support(2, 0.3, supported_s=(w.s_range[0], w.s_range[0] + 50)))
             elif w.wire_id == 3 and (extent > 50 or w.s_range[0] > 0):  # a false join, and
                 out.append(_support(3, 0.3))  # a piece now explained by a better wire
+            elif w.wire_id == 4:  # rejected; then explained by wire 0 all along
+                out.append(_support(4, None if len(w.point_indices) < 60 else 0.3))
             else:
                 out.append(_support(w.wire_id, 1.0))
         return out
 
     wires, supports = _confirm_grown(grown, confirmed, judge, pts, 90.0, ReconstructionOptions())
     extents = [round(w.s_range[1] - w.s_range[0]) for w in wires]
-    assert extents == [80, 96, 50, 20]
-    assert [w.wire_id for w in wires] == [s.wire_id for s in supports] == [0, 1, 2, 3]
+    assert extents[:4] == [60, 96, 50, 20] and extents[4] == pytest.approx(25, abs=1)
+    assert [w.wire_id for w in wires] == [s.wire_id for s in supports] == [0, 1, 2, 3, 4]
+    assert len(wires[4].point_indices) == len(tail)  # the stretch of wire 0, kept
     assert all(s.confidence == 1.0 for s in supports)
-    assert len(calls) == 2 and (0, 80) in calls[0]
+    assert len(calls) == 2 and (0, 60) in calls[0]
 
     # Nothing grew: nothing is judged.
     wires, supports = _confirm_grown(
