@@ -390,8 +390,9 @@ def reconstruct(
     members = dict(support_members(kept, corridor.direction_xy, options.wires.max_gap))
     for k, at in members.items():
         logger.info(
-            "support: wire %d dropped (%.0f m): it runs through the place %.1f along the line "
-            "where the longer wires end — a member of the support, not a wire",
+            "support: wire %d dropped (%.0f m): it runs through or lies wholly past the place "
+            "%.1f along the line where the longer wires end — a member of the support or "
+            "outside the span, not a wire of it",
             kept[k].wire_id,
             kept[k].s_range[1] - kept[k].s_range[0],
             at,

@@ -613,7 +613,8 @@ SUPPORT_OVERHANG_OUT = 0.5
 def support_members(
     wires: Sequence[FittedWire], along_xy: F64, long_length: float
 ) -> list[tuple[int, float]]:
-    """Short pieces that are members of a support (tower bracing), not wires.
+    """Short pieces that are members of a support (tower bracing), not wires, and short
+    pieces wholly past a support where no long wire hangs.
 
     Conductors end at their supports, so where two or more long wires (at least
     ``long_length``) end together along the line there is a support. A lattice tower's
@@ -647,6 +648,16 @@ def support_members(
     out = []
     for k, (w, (lo, hi)) in enumerate(zip(wires, spans, strict=True)):
         if _extent(w) >= long_length:
+            continue
+        # Wholly past a support, where no long wire hangs: not a wire of these spans (it
+        # lies past where they all end; a span beyond has long wires of its own there).
+        past = [
+            (sign, at)
+            for sign, at, outermost in supports
+            if (hi if sign > 0 else -lo) <= sign * outermost - SUPPORT_OVERHANG_OUT
+        ]
+        if past and not any(e[0] < hi and lo < e[1] for e in long_spans):
+            out.append((k, past[0][1]))
             continue
         for sign, at, outermost in supports:
             # Along the outward direction: the piece's outer and inner ends.

@@ -298,3 +298,20 @@ def test_grown_wires_are_judged_again():
         confirmed_wires, confirmed, judge, pts, 90.0, ReconstructionOptions()
     )
     assert len(calls) == 2 and len(wires) == len(confirmed_wires)
+
+
+def test_a_short_piece_wholly_past_the_supports_is_not_a_wire():
+    """The shared corridor: a 9 m piece 1-10 m past where every conductor ends (a false
+    pairing by the tower) is outside the span; the same piece where a long wire of the next
+    span hangs is kept."""
+    ends = [(-50.6, 48.4), (-50.5, 48.6), (-50.3, 48.5), (-50.3, 48.3), (-49.9, 48.7)]
+    wires = [_piece(k, 4.0 * (-1) ** k, lo, hi, 21.0 + k) for k, (lo, hi) in enumerate(ends)]
+    wires.append(_piece(5, 10.8, 49.4, 58.6, 12.7))  # past the upper support
+    wires.append(_piece(6, -10.0, -62.0, -55.0, 12.0))  # past the lower one
+    wires.append(_piece(7, 5.0, 10.0, 20.0, 25.0))  # inside the span
+    found = dict(support_members(wires, np.array([1.0, 0.0]), long_length=25.0))
+    assert set(found) == {5, 6}
+    # A span beyond: its long wires hang where piece 5 lies.
+    wires.append(_piece(8, 4.0, 48.6, 140.0, 21.0))
+    found = dict(support_members(wires, np.array([1.0, 0.0]), long_length=25.0))
+    assert 5 not in found and 6 in found
