@@ -123,6 +123,12 @@ MIN_TRIM_BINS = 3  # a supported stretch shorter than this many is not proposed
 # over the line).
 MIN_OWN_SHARE = 0.5
 
+# Views that can tell but see less than this share of what all views see of a wire (a
+# glimpse: 0.5 % of a conductor on the shared corridor seed 2) leave it, when they neither
+# confirm nor reject it, to the strips; short false pairings that they see well (a third of
+# what all views see) stay theirs to decide.
+GLIMPSE_SHARE = 0.1
+
 # Acceptance is repeated on the accepted set until it no longer changes, at most this often.
 MAX_SUPPORT_ROUNDS = 4
 
@@ -413,9 +419,10 @@ def wire_support(
         of wire k, where the wires ``others`` explain what they cover.
 
         Views that can tell decide wherever they see enough of the wire to (even when what
-        they see is all explained by other wires). When they see too little to confirm it
-        and do not reject it either (a 70 px glimpse in one view), the wire is judged as
-        one that no view can tell: by every strip that sees it."""
+        they see is all explained by other wires). When they see only a glimpse of it, too
+        little to confirm it, and do not reject it either (70 px in one view of a wire 14
+        views see along 1500 px), the wire is judged as one that no view can tell: by every
+        strip that sees it."""
         ms, cross = measured[k][0], measured[k][1]
         explained = [np.zeros(len(m.uv), bool) for m in ms]
         for o in others:
@@ -427,10 +434,11 @@ def wire_support(
         rate = np.array([view_hit_rates[m.view_index] for m in ms])
         rate = np.where(np.isfinite(rate), rate, typical_rate)
         seen = np.array([0.5 * len(m.uv) for m in ms])
+        glimpse = seen[cross].sum() < GLIMPSE_SHARE * seen.sum()
         if (cross & (seen >= options.min_projected_px)).any():
             confidence, rejected = decide(k, others, cross, length, hit, chance, rate)
             # None: what they see of it other wires explain.
-            if sure(confidence) or rejected or confidence is None:
+            if sure(confidence) or rejected or confidence is None or not glimpse:
                 return confidence, length, hit, cross & informative, True
         confidence, _ = decide(k, others, np.zeros(len(ms), bool), length, hit, chance, rate)
         return confidence, length, hit, informative, False
