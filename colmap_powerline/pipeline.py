@@ -560,9 +560,10 @@ def _confirm_grown(
     options: ReconstructionOptions,
 ) -> tuple[list[FittedWire], list[WireSupport]]:
     """Wires that grew or were joined since they were confirmed, judged again as they are
-    now, with all the others. One the views reject is cut back to the stretch they support,
-    or else goes back to the confirmed pieces it grew from, each judged again (a piece that
-    a better wire now explains goes; its points join a wire they lie on). A wire that did not
+    now, with all the others. One the views reject is cut back to the stretch they support;
+    if they support none, it goes with the pieces it grew from; if the cut is rejected too,
+    it goes back to those pieces, each judged again (a piece that a better wire now explains
+    goes; its points join a wire they lie on). A wire that did not
     change keeps its support. Renumbered from 0."""
     held = [set(w.point_indices.tolist()) for w in wires]
     parts: list[list[int]] = [[] for _ in wires]  # confirmed pieces in each wire
@@ -644,6 +645,17 @@ def _confirm_grown(
                     length(cut),
                 )
                 step.append(([cut], None, 1, k))
+            elif stage == 0:
+                # No stretch of it supported: what it grew along shows the piece it grew from
+                # was a false pairing too (true pieces keep a supported stretch).
+                logger.info(
+                    "support: wire %d (%s) grew from a piece of %s and the views support no "
+                    "stretch of it: dropped",
+                    wires[k].wire_id,
+                    length(ws[0]),
+                    ", ".join(length(confirmed[j][0]) for j in parts[k]),
+                )
+                step.append(([], [], 2, k))
             else:
                 pieces = [confirmed[j][0] for j in parts[k]]
                 logger.info(

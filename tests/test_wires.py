@@ -229,9 +229,9 @@ def _support(wire_id: int, confidence: float | None, supported_s=None) -> WireSu
 def test_grown_wires_are_judged_again():
     """After the confirmed wires took more points: an unchanged wire keeps its support and
     is not judged on its own; a grown one the views still confirm gets its new support; one
-    they reject only past a stretch is cut back to it; one they reject all along goes back to
-    the pieces it grew from, which are judged again with the rest (one that a better wire
-    now explains goes)."""
+    they reject only past a stretch is cut back to it; one they support nowhere goes with
+    the pieces it grew from; one whose cut is rejected too goes back to its pieces, judged
+    again with the rest (one that lies on another wire's curve stays)."""
     rng = np.random.default_rng(0)
     lines = [(4.0, 21.0), (-4.0, 21.0), (0.0, 25.0), (8.0, 30.0), (9.0, 33.0)]
     s = np.arange(-50.0, 50.0, 0.5)
@@ -257,7 +257,7 @@ def test_grown_wires_are_judged_again():
     tail = np.flatnonzero((s >= 25) & (s <= 50))
     (w4,) = split_wires(pts[tail], 90.0)
     stretch = dataclasses.replace(w4, wire_id=4, point_indices=tail[w4.point_indices])
-    both = np.r_[tail, 4 * n + tail]
+    both = np.r_[tail, 4 * n + np.flatnonzero(s <= -25)]
     confirmed_wires.append(stretch)
     confirmed = [(w, _support(w.wire_id, 1.0)) for w in confirmed_wires]
     false_join = dataclasses.replace(stretch, point_indices=both)
@@ -279,25 +279,28 @@ def test_grown_wires_are_judged_again():
                 out.append(_support(2, 0.3, supported_s=(w.s_range[0], w.s_range[0] + 50)))
             elif w.wire_id == 3 and (extent > 50 or w.s_range[0] > 0):  # a false join, and
                 out.append(_support(3, 0.3))  # a piece now explained by a better wire
-            elif w.wire_id == 4:  # rejected; then explained by wire 0 all along
-                out.append(_support(4, None if len(w.point_indices) < 60 else 0.3))
+            elif w.wire_id == 4 and len(w.point_indices) > 60:  # right only over the tail
+                out.append(_support(4, 0.3, supported_s=(25.0, 50.0)))
+            elif w.wire_id == 4:  # the tail, cut or as confirmed: explained by wire 0
+                out.append(_support(4, None))
             else:
                 out.append(_support(w.wire_id, 1.0))
         return out
 
     wires, supports = _confirm_grown(grown, confirmed, judge, pts, 90.0, ReconstructionOptions())
     extents = [round(w.s_range[1] - w.s_range[0]) for w in wires]
-    assert extents[:4] == [60, 96, 50, 20] and extents[4] == pytest.approx(25, abs=1)
-    assert [w.wire_id for w in wires] == [s.wire_id for s in supports] == [0, 1, 2, 3, 4]
-    assert len(wires[4].point_indices) == len(tail)  # the stretch of wire 0, kept
+    # Wire 3 (a false join the views support nowhere) goes with its pieces.
+    assert extents[:3] == [60, 96, 50] and extents[3] == pytest.approx(25, abs=1)
+    assert [w.wire_id for w in wires] == [s.wire_id for s in supports] == [0, 1, 2, 3]
+    assert len(wires[3].point_indices) == len(tail)  # the stretch of wire 0, kept
     assert all(s.confidence == 1.0 for s in supports)
-    assert len(calls) == 2 and (0, 60) in calls[0]
+    assert len(calls) == 3 and (0, 60) in calls[0]
 
     # Nothing grew: nothing is judged.
     wires, supports = _confirm_grown(
         confirmed_wires, confirmed, judge, pts, 90.0, ReconstructionOptions()
     )
-    assert len(calls) == 2 and len(wires) == len(confirmed_wires)
+    assert len(calls) == 3 and len(wires) == len(confirmed_wires)
 
 
 def test_a_short_piece_wholly_past_the_supports_is_not_a_wire():
