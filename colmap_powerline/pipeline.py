@@ -583,9 +583,6 @@ def _confirm_grown(
             for w, p in zip(wires, parts, strict=True)
         ]
 
-    def ok(s: WireSupport) -> bool:
-        return s.confidence is not None and s.confidence >= options.support.min_confidence
-
     def length(w: FittedWire) -> str:
         return f"{w.s_range[1] - w.s_range[0]:.0f} m"
 
@@ -607,7 +604,8 @@ def _confirm_grown(
             if settled is not None:
                 step.append((ws, settled, stage, k))
                 continue
-            good = [(w, g) for w, g in zip(ws, got, strict=True) if ok(g)]
+            accepts = options.support.accepts
+            good = [(w, g) for w, g in zip(ws, got, strict=True) if accepts(g.confidence)]
             if stage == 2:
                 # A confirmed piece that another wire explains all along because it is a
                 # stretch of that wire (its points lie on that wire's curve continued: the

@@ -63,6 +63,10 @@ class SupportOptions:
         if not 0 <= self.min_hit_share <= 1:
             raise ValueError(f"{self.min_hit_share=} but expected in [0, 1]")
 
+    def accepts(self, confidence: float | None) -> bool:
+        """Whether a wire with this confidence is kept."""
+        return confidence is not None and confidence >= self.min_confidence
+
 
 @dataclass(frozen=True)
 class WireSupport:
@@ -324,8 +328,14 @@ def wire_support(
             overlap[(k, o)] = out_k
         return overlap[(k, o)]
 
-    def sure(c: float | None) -> bool:
-        return c is not None and c >= options.min_confidence
+    sure = options.accepts
+
+    def explained_by(k: int, others: set[int]) -> list[npt.NDArray[np.bool_]]:
+        """Per view of wire k, its samples that lie on one of the wires ``others``."""
+        explained = [np.zeros(len(m.uv), bool) for m in measured[k][0]]
+        for o in others:
+            explained = [e | x for e, x in zip(explained, on_other(k, o), strict=True)]
+        return explained
 
     pixels_of = {p.view_index: p for p in wire_pixels}
     masks: dict[int, npt.NDArray[np.bool_]] = {}  # a few views' unpacked masks
@@ -424,9 +434,7 @@ def wire_support(
         views see along 1500 px), the wire is judged as one that no view can tell: by every
         strip that sees it."""
         ms, cross = measured[k][0], measured[k][1]
-        explained = [np.zeros(len(m.uv), bool) for m in ms]
-        for o in others:
-            explained = [e | x for e, x in zip(explained, on_other(k, o), strict=True)]
+        explained = explained_by(k, others)
         rows = np.array([m.share(~e) for m, e in zip(ms, explained, strict=True)]).reshape(-1, 3)
         length, hit, control = rows.T
         chance = np.maximum(control, [density[m.view_index] for m in ms])
@@ -436,17 +444,18 @@ def wire_support(
         seen = np.array([0.5 * len(m.uv) for m in ms])
         glimpse = seen[cross].sum() < GLIMPSE_SHARE * seen.sum()
         if (cross & (seen >= options.min_projected_px)).any():
-            confidence, rejected = decide(k, others, cross, length, hit, chance, rate)
+            confidence, rejected = decide(k, others, cross, seen, length, hit, chance, rate)
             # None: what they see of it other wires explain.
             if sure(confidence) or rejected or confidence is None or not glimpse:
                 return confidence, length, hit, cross & informative, True
-        confidence, _ = decide(k, others, np.zeros(len(ms), bool), length, hit, chance, rate)
+        confidence, _ = decide(k, others, np.zeros(len(ms), bool), seen, length, hit, chance, rate)
         return confidence, length, hit, informative, False
 
     def decide(
         k: int,
         others: set[int],
         cross: npt.NDArray[np.bool_],
+        seen: F64,
         length: F64,
         hit: F64,
         chance: F64,
@@ -487,7 +496,6 @@ def wire_support(
             # second case the true wire i is missing, and its image is free in that strip:
             # the wire goes when, moved along the rays of the strip that confirms it, it
             # meets an image wire there that no other wire explains.
-            seen = np.array([0.5 * len(m.uv) for m in ms])
             for g in np.unique(strip_of):
                 sel = strip_of == g
                 if (
@@ -505,9 +513,7 @@ def wire_support(
         ms, cross = measured[k][0], measured[k][1]
         if not ms:
             return None
-        explained = [np.zeros(len(m.uv), bool) for m in ms]
-        for o in others:
-            explained = [e | x for e, x in zip(explained, on_other(k, o), strict=True)]
+        explained = explained_by(k, others)
         length = np.array([0.5 * (~e).sum() for e in explained])
         informative = length >= options.min_projected_px
         use = cross & informative if cross.any() else informative
@@ -698,7 +704,7 @@ def keep_supported(
                 s.height_above_ground,
             )
             continue
-        if s.confidence is None or s.confidence < options.min_confidence:
+        if not options.accepts(s.confidence):
             logger.info(
                 "support: wire %d dropped (%.0f m): confidence %s, on wires %.0f %% of its "
                 "length in %d views (%d crossing), chance %.0f %% — a false pairing of image "
