@@ -282,6 +282,32 @@ def primitives_for_pairs(
     return out, decoded
 
 
+def _settled_by_the_views(verified: VerifiedPoints, min_posterior: float) -> VerifiedPoints:
+    """Pending points that views offset across the wires see, and that every view seeing
+    them makes sure to lie on a wire (a posterior ≥ ``min_posterior`` with the prior 1/2
+    of a settled match), join the points from which wires are hypothesised.
+
+    Their match is not settled point by point (one wire centre, K candidates on its row,
+    few views: the top conductors and shields of a flight across the line are seen by 4-6
+    images, 2 of them the pair's), but a wire of them is judged as a whole by the views
+    that can tell (:func:`colmap_powerline.support.wire_support`). Points that no view
+    offset across the wires sees stay pending: there the prior 1/K is all that keeps false
+    pairings out of the hypotheses, and only confirmed wires take them."""
+    pending = verified.pending
+    if pending is None:
+        return verified
+    logit = np.log(min_posterior / (1 - min_posterior))
+    take = np.flatnonzero((pending.evidence >= logit) & (pending.crossing_views > 0))
+    if len(take):
+        logger.info(
+            "verify: %d more points that every view seeing them favours, seen by views that "
+            "can tell (%d pending); wires of them are judged as a whole",
+            len(take),
+            len(pending) - len(take),
+        )
+    return verified.with_pending(take, min_posterior)
+
+
 def reconstruct(
     image_path: Path | str | None,
     input_path: Path | str | None,
@@ -346,6 +372,7 @@ def reconstruct(
     )
     decoded += verified.decoded
     timings["verify"] = time.perf_counter() - t0
+    verified = _settled_by_the_views(verified, options.verify.min_posterior)
 
     t0 = time.perf_counter()
     candidates = split_wires(verified.pts_in_world, corridor.azimuth_deg, options.wires)

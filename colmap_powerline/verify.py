@@ -111,12 +111,15 @@ class VerifiedPoints:
         return len(self.pts_in_world)
 
     def with_pending(self, take: npt.NDArray[np.int64], min_posterior: float) -> VerifiedPoints:
-        """These points plus the pending ones ``take`` (their posterior on a confirmed wire)."""
+        """These points plus the pending ones ``take`` (their posterior with the prior 1/2 of
+        a point whose match is settled), the other pending points still pending."""
         p = self.pending
         if p is None or len(take) == 0:
             return self
         post = 1 / (1 + np.exp(-np.clip(p.evidence[take], -50, 50)))  # prior 1/2
         assert (post >= min_posterior).all()
+        rest = np.ones(len(p), bool)
+        rest[take] = False
         return dataclasses.replace(
             self,
             pts_in_world=np.r_[self.pts_in_world, p.pts_in_world[take]],
@@ -127,7 +130,7 @@ class VerifiedPoints:
             posterior=np.r_[self.posterior, post],
             pair_index=np.r_[self.pair_index, p.pair_index[take]],
             refined=np.r_[self.refined, p.refined[take]],
-            pending=None,
+            pending=p.subset(rest) if rest.any() else None,
         )
 
 
@@ -147,6 +150,18 @@ class PendingPoints:
 
     def __len__(self) -> int:
         return len(self.pts_in_world)
+
+    def subset(self, keep: npt.NDArray[np.bool_]) -> PendingPoints:
+        return PendingPoints(
+            self.pts_in_world[keep],
+            self.evidence[keep],
+            self.hits[keep],
+            self.views[keep],
+            self.crossing_views[keep],
+            self.crossing_hits[keep],
+            self.pair_index[keep],
+            self.refined[keep],
+        )
 
 
 # Across-wire offsets (px) of the control copies of a point: a hit there is chance (as in
