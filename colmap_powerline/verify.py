@@ -105,10 +105,35 @@ class VerifiedPoints:
     view_hit_rates: F64  # (V,) each view's estimated hit rate on true wire points (NaN:
     # the view saw no confirmed point)
     wire_pixels: list[ViewWirePixels]  # what each searched view saw, for checking whole wires
+    primitive_index: npt.NDArray[np.int64]  # (N,) each point's primitive, numbered over all
+    # pairs in order
     pending: PendingPoints | None = None  # primitives the views favour, short of sure
 
     def __len__(self) -> int:
         return len(self.pts_in_world)
+
+    def with_consensus(
+        self,
+        pts_in_world: F64,
+        primitive_index: npt.NDArray[np.int64],
+        pair_index: npt.NDArray[np.int32],
+    ) -> VerifiedPoints:
+        """These points plus primitives kept for lying on a confirmed wire (no posterior of
+        their own: NaN; hits and views not counted: 0)."""
+        n = len(pts_in_world)
+        zeros = np.zeros(n, np.int32)
+        return dataclasses.replace(
+            self,
+            pts_in_world=np.r_[self.pts_in_world, pts_in_world],
+            hits=np.r_[self.hits, zeros],
+            views=np.r_[self.views, zeros],
+            crossing_views=np.r_[self.crossing_views, zeros],
+            crossing_hits=np.r_[self.crossing_hits, zeros],
+            posterior=np.r_[self.posterior, np.full(n, np.nan)],
+            pair_index=np.r_[self.pair_index, pair_index],
+            refined=np.r_[self.refined, np.zeros(n, bool)],
+            primitive_index=np.r_[self.primitive_index, primitive_index],
+        )
 
     def with_pending(self, take: npt.NDArray[np.int64], min_posterior: float) -> VerifiedPoints:
         """These points plus the pending ones ``take`` (their posterior with the prior 1/2 of
@@ -130,6 +155,7 @@ class VerifiedPoints:
             posterior=np.r_[self.posterior, post],
             pair_index=np.r_[self.pair_index, p.pair_index[take]],
             refined=np.r_[self.refined, p.refined[take]],
+            primitive_index=np.r_[self.primitive_index, p.primitive_index[take]],
             pending=p.subset(rest) if rest.any() else None,
         )
 
@@ -147,6 +173,7 @@ class PendingPoints:
     crossing_hits: npt.NDArray[np.int32]
     pair_index: npt.NDArray[np.int32]
     refined: npt.NDArray[np.bool_]
+    primitive_index: npt.NDArray[np.int64]
 
     def __len__(self) -> int:
         return len(self.pts_in_world)
@@ -161,6 +188,7 @@ class PendingPoints:
             self.crossing_hits[keep],
             self.pair_index[keep],
             self.refined[keep],
+            self.primitive_index[keep],
         )
 
 
@@ -543,6 +571,7 @@ def verify_primitives(
         decoded,
         rates,
         wire_pixels,
+        np.flatnonzero(keep),
         PendingPoints(
             pending_pts,
             evidence[pending],
@@ -552,5 +581,6 @@ def verify_primitives(
             crossing_hits[pending],
             pair_of[pending],
             pending_refined,
+            np.flatnonzero(pending),
         ),
     )
