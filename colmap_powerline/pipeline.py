@@ -420,20 +420,7 @@ def reconstruct(
     kept, supports = keep_supported(
         candidates, supports, options.support, options.triangulate.min_wire_height
     )
-    members = dict(support_members(kept, corridor.direction_xy, options.wires.max_gap))
-    for k, at in members.items():
-        logger.info(
-            "support: wire %d dropped (%.0f m): it runs through or lies wholly past the place "
-            "%.1f along the line where the longer wires end — a member of the support or "
-            "outside the span, not a wire of it",
-            kept[k].wire_id,
-            kept[k].s_range[1] - kept[k].s_range[0],
-            at,
-        )
-    kept = [w for k, w in enumerate(kept) if k not in members]
-    supports = [s for k, s in enumerate(supports) if k not in members]
-    wires = [dataclasses.replace(w, wire_id=i) for i, w in enumerate(kept)]
-    supports = [dataclasses.replace(s, wire_id=i) for i, s in enumerate(supports)]
+    wires, supports = _without_members(kept, supports, corridor, options)
     wires, supports = _join_pieces(
         wires, supports, verified.pts_in_world, corridor.azimuth_deg, options.wires
     )
@@ -498,6 +485,10 @@ def reconstruct(
         wires, supports = _confirm_grown(
             wires, confirmed, judge, verified.pts_in_world, corridor.azimuth_deg, options
         )
+        # A piece by a support that grew may now run through it (the package's corridor at
+        # quarter scale: a 5 m tower member at 9 m height, inside the conductors' ends when
+        # confirmed, grew past them).
+        wires, supports = _without_members(wires, supports, corridor, options)
     if wires:
         wires, verified = _consensus(wires, verified, primitives)
     labels = np.full(len(verified), -1, np.int64)
@@ -584,6 +575,32 @@ def reconstruct(
             )
             timings["report"] = time.perf_counter() - t0
     return result
+
+
+def _without_members(
+    wires: list[FittedWire],
+    supports: list[WireSupport],
+    corridor: WireCorridor,
+    options: ReconstructionOptions,
+) -> tuple[list[FittedWire], list[WireSupport]]:
+    """The wires without the short pieces that are members of a support or lie outside the
+    span (:func:`colmap_powerline.support.support_members`), renumbered from 0."""
+    members = dict(support_members(wires, corridor.direction_xy, options.wires.max_gap))
+    for k, at in members.items():
+        logger.info(
+            "support: wire %d dropped (%.0f m): it runs through or lies wholly past the place "
+            "%.1f along the line where the longer wires end — a member of the support or "
+            "outside the span, not a wire of it",
+            wires[k].wire_id,
+            wires[k].s_range[1] - wires[k].s_range[0],
+            at,
+        )
+    kept = [w for k, w in enumerate(wires) if k not in members]
+    sup = [s for k, s in enumerate(supports) if k not in members]
+    return (
+        [dataclasses.replace(w, wire_id=i) for i, w in enumerate(kept)],
+        [dataclasses.replace(s, wire_id=i) for i, s in enumerate(sup)],
+    )
 
 
 def _consensus(
