@@ -17,6 +17,7 @@ from typing import Any
 import cv2
 import numpy as np
 import numpy.typing as npt
+from scipy.spatial import cKDTree
 from tqdm import tqdm
 
 from .clearance import WireMeasures, assign_kinds, measure_wire
@@ -72,6 +73,10 @@ CONTINUATION_DISTANCE = 0.3
 # then reach 3-13 % more of each wire with the median distance to the truth at 2.7-3.3 cm;
 # twice the residual adds 1-2 % more at 3.1-3.5 cm).
 CONSENSUS_SIGMAS = 1.5
+
+# A confirmed wire that took points only within this share of its length past its ends is
+# not judged again (it grew along no stretch the views have not judged).
+GROWN_SHARE = 0.02
 
 # Confirmed wires take the points the views favour in steps of ``WiresOptions.max_gap`` past
 # their ends; this many steps reach past any span.
@@ -288,7 +293,9 @@ def primitives_for_pairs(
     return out, decoded
 
 
-def _settled_by_the_views(verified: VerifiedPoints, min_posterior: float) -> VerifiedPoints:
+def _settled_by_the_views(
+    verified: VerifiedPoints, min_posterior: float, near: float
+) -> VerifiedPoints:
     """Pending points that views offset across the wires see, and that every view seeing
     them makes sure to lie on a wire (a posterior ≥ ``min_posterior`` with the prior 1/2
     of a settled match), join the points from which wires are hypothesised.
@@ -304,6 +311,11 @@ def _settled_by_the_views(verified: VerifiedPoints, min_posterior: float) -> Ver
         return verified
     logit = np.log(min_posterior / (1 - min_posterior))
     take = np.flatnonzero((pending.evidence >= logit) & (pending.crossing_views > 0))
+    if len(take) and len(verified):
+        # Only where they add to what the verified points cover: within ``near`` of one they
+        # lie on the same wire and only slow the split (a confirmed wire takes them later).
+        d, _ = cKDTree(verified.pts_in_world).query(pending.pts_in_world[take])
+        take = take[d > near]
     if len(take):
         logger.info(
             "verify: %d more points that every view seeing them favours, seen by views that "
@@ -378,7 +390,9 @@ def reconstruct(
     )
     decoded += verified.decoded
     timings["verify"] = time.perf_counter() - t0
-    verified = _settled_by_the_views(verified, options.verify.min_posterior)
+    verified = _settled_by_the_views(
+        verified, options.verify.min_posterior, options.wires.inlier_distance
+    )
 
     t0 = time.perf_counter()
     candidates = split_wires(verified.pts_in_world, corridor.azimuth_deg, options.wires)
@@ -649,6 +663,14 @@ def _consensus(
     return wires, verified
 
 
+def _within(w: FittedWire, pts: F64) -> bool:
+    """Whether the points lie along the stretch of ``w`` (its ends moved out by at most
+    ``GROWN_SHARE`` of its length)."""
+    s = w.plane_coords(pts)[0]
+    margin = GROWN_SHARE * (w.s_range[1] - w.s_range[0])
+    return bool(s.min() >= w.s_range[0] - margin and s.max() <= w.s_range[1] + margin)
+
+
 def _confirm_grown(
     wires: list[FittedWire],
     confirmed: list[tuple[FittedWire, WireSupport]],
@@ -671,8 +693,12 @@ def _confirm_grown(
             if len(pts & h) > 0.5 * len(pts):
                 parts[k].append(j)
                 break
+    # A wire that took points only along the stretch it was confirmed on (its ends moved by
+    # less than ``GROWN_SHARE`` of its length) keeps its support: judged again beside
+    # neighbours that grew, a conductor stacked above another in the views (shared cross
+    # seed 2: 87 m, one point more) could lose the evidence it was confirmed with.
     unchanged = [
-        len(p) == 1 and len(held[k]) == len(confirmed[p[0]][0].point_indices)
+        len(p) == 1 and _within(confirmed[p[0]][0], pts_in_world[wires[k].point_indices])
         for k, p in enumerate(parts)
     ]
     if all(unchanged):
