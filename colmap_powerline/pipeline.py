@@ -74,10 +74,6 @@ CONTINUATION_DISTANCE = 0.3
 # twice the residual adds 1-2 % more at 3.1-3.5 cm).
 CONSENSUS_SIGMAS = 1.5
 
-# A confirmed wire that took points only within this share of its length past its ends is
-# not judged again (it grew along no stretch the views have not judged).
-GROWN_SHARE = 0.02
-
 # Confirmed wires take the points the views favour in steps of ``WiresOptions.max_gap`` past
 # their ends; this many steps reach past any span.
 MAX_ABSORB_STEPS = 40
@@ -296,9 +292,10 @@ def primitives_for_pairs(
 def _settled_by_the_views(
     verified: VerifiedPoints, min_posterior: float, near: float
 ) -> VerifiedPoints:
-    """Pending points that views offset across the wires see, and that every view seeing
-    them makes sure to lie on a wire (a posterior ≥ ``min_posterior`` with the prior 1/2
-    of a settled match), join the points from which wires are hypothesised.
+    """Pending points that views offset across the wires see, most of them on a wire, and
+    that every view seeing them makes sure to lie on a wire (a posterior ≥
+    ``min_posterior`` with the prior 1/2 of a settled match), join the points from which
+    wires are hypothesised, where they add to the verified points (farther than ``near``).
 
     Their match is not settled point by point (one wire centre, K candidates on its row,
     few views: the top conductors and shields of a flight across the line are seen by 4-6
@@ -310,7 +307,13 @@ def _settled_by_the_views(
     if pending is None:
         return verified
     logit = np.log(min_posterior / (1 - min_posterior))
-    take = np.flatnonzero((pending.evidence >= logit) & (pending.crossing_views > 0))
+    # Seen by views that can tell, and most of them land on a wire (a false pairing of a
+    # flight along the line that every view along the wires favours misses them).
+    take = np.flatnonzero(
+        (pending.evidence >= logit)
+        & (pending.crossing_views > 0)
+        & (2 * pending.crossing_hits >= pending.crossing_views)
+    )
     if len(take) and len(verified):
         # Only where they add to what the verified points cover: within ``near`` of one they
         # lie on the same wire and only slow the split (a confirmed wire takes them later).
@@ -663,14 +666,6 @@ def _consensus(
     return wires, verified
 
 
-def _within(w: FittedWire, pts: F64) -> bool:
-    """Whether the points lie along the stretch of ``w`` (its ends moved out by at most
-    ``GROWN_SHARE`` of its length)."""
-    s = w.plane_coords(pts)[0]
-    margin = GROWN_SHARE * (w.s_range[1] - w.s_range[0])
-    return bool(s.min() >= w.s_range[0] - margin and s.max() <= w.s_range[1] + margin)
-
-
 def _confirm_grown(
     wires: list[FittedWire],
     confirmed: list[tuple[FittedWire, WireSupport]],
@@ -693,12 +688,8 @@ def _confirm_grown(
             if len(pts & h) > 0.5 * len(pts):
                 parts[k].append(j)
                 break
-    # A wire that took points only along the stretch it was confirmed on (its ends moved by
-    # less than ``GROWN_SHARE`` of its length) keeps its support: judged again beside
-    # neighbours that grew, a conductor stacked above another in the views (shared cross
-    # seed 2: 87 m, one point more) could lose the evidence it was confirmed with.
     unchanged = [
-        len(p) == 1 and _within(confirmed[p[0]][0], pts_in_world[wires[k].point_indices])
+        len(p) == 1 and len(held[k]) == len(confirmed[p[0]][0].point_indices)
         for k, p in enumerate(parts)
     ]
     if all(unchanged):

@@ -33,22 +33,25 @@ def _pending(pts: np.ndarray, evidence: np.ndarray, crossing: np.ndarray) -> Pen
 
 def test_pending_points_seen_across_the_wires_join_the_hypotheses():
     """Sure on every view's evidence and seen by a view that can tell: they join the
-    verified points. Short of sure, seen only along the wires, or beside a verified point
-    (nothing to add there): still pending."""
+    verified points. Short of sure, seen only along the wires, missed by most views that
+    can tell, or beside a verified point (nothing to add there): still pending."""
     rng = np.random.default_rng(0)
     kept = rng.normal(size=(5, 3)) * 10
-    pts = np.r_[rng.normal(size=(4, 3)) * 10, kept[:1] + 0.005]
+    pts = np.r_[rng.normal(size=(4, 3)) * 10, kept[:1] + 0.005, rng.normal(size=(1, 3)) * 10]
     logit = np.log(0.99 / 0.01)
+    # One hit per point: the last one most views that can tell miss.
     pending = _pending(
-        pts, np.array([logit + 1, logit + 1, logit - 1, 9.0, 9.0]), np.array([2, 0, 3, 1, 4])
+        pts,
+        np.array([logit + 1, logit + 1, logit - 1, 9.0, 9.0, 9.0]),
+        np.array([2, 0, 3, 1, 1, 4]),
     )
     out = _settled_by_the_views(_verified(kept, np.arange(5), pending), 0.99, 0.01)
     assert len(out) == 7
     np.testing.assert_array_equal(out.pts_in_world[5:], pts[[0, 3]])
     np.testing.assert_array_equal(out.primitive_index, [0, 1, 2, 3, 4, 100, 103])
-    assert out.pending is not None and len(out.pending) == 3
-    np.testing.assert_array_equal(out.pending.pts_in_world, pts[[1, 2, 4]])
-    np.testing.assert_array_equal(out.pending.primitive_index, [101, 102, 104])
+    assert out.pending is not None and len(out.pending) == 4
+    np.testing.assert_array_equal(out.pending.pts_in_world, pts[[1, 2, 4, 5]])
+    np.testing.assert_array_equal(out.pending.primitive_index, [101, 102, 104, 105])
 
 
 def _on_curve(s: np.ndarray, noise: float, rng) -> np.ndarray:

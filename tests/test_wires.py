@@ -301,15 +301,6 @@ def test_grown_wires_are_judged_again():
         confirmed_wires, confirmed, judge, pts, 90.0, ReconstructionOptions()
     )
     assert len(calls) == 3 and len(wires) == len(confirmed_wires)
-    # Points taken only along the confirmed stretch (0.5 m past a 60 m wire's end): its
-    # support stands, nothing is judged.
-    along = list(confirmed_wires)
-    along[1] = piece(1, -30, 30.5)
-    wires, supports = _confirm_grown(along, confirmed, judge, pts, 90.0, ReconstructionOptions())
-    assert (
-        len(calls) == 3 and len(wires[1].point_indices) == len(confirmed_wires[1].point_indices) + 1
-    )
-    assert supports[1].confidence == 1.0
 
 
 def test_a_short_piece_wholly_past_the_supports_is_not_a_wire():
