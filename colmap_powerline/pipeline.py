@@ -56,6 +56,7 @@ from .wires import (
     WiresOptions,
     absorb_points,
     merge_pieces,
+    nearest_wire,
     split_wires,
     trim_wire,
 )
@@ -298,7 +299,7 @@ def _settled_by_the_views(
     wires are hypothesised, where they add to the verified points (farther than ``near``).
 
     Their match is not settled point by point (one wire centre, K candidates on its row,
-    few views: the top conductors and shields of a flight across the line are seen by 4-6
+    few views: the top conductors and shields of a flight across the line are seen by 3-6
     images, 2 of them the pair's), but a wire of them is judged as a whole by the views
     that can tell (:func:`colmap_powerline.support.wire_support`). Points that no view
     offset across the wires sees stay pending: there the prior 1/K is all that keeps false
@@ -640,14 +641,10 @@ def _consensus(
     if len(idx) == 0:
         return wires, verified
     cand = pts[idx]
-    dist = np.full((len(wires), len(idx)), np.inf)
-    for k, w in enumerate(wires):
-        s = w.plane_coords(cand)[0]
-        inside = (s >= w.s_range[0]) & (s <= w.s_range[1])
-        d = w.distance(cand[inside])
-        dist[k, np.flatnonzero(inside)] = np.where(d < CONSENSUS_SIGMAS * w.rms_residual, d, np.inf)
-    best = np.argmin(dist, axis=0)
-    take = np.flatnonzero(np.isfinite(dist[best, np.arange(len(idx))]))
+    best = nearest_wire(
+        wires, cand, 0.0, CONSENSUS_SIGMAS * np.array([w.rms_residual for w in wires])
+    )
+    take = np.flatnonzero(best >= 0)
     if len(take) == 0:
         return wires, verified
     n_before = len(verified)

@@ -112,6 +112,12 @@ class VerifiedPoints:
     def __len__(self) -> int:
         return len(self.pts_in_world)
 
+    def _appended(self, **more: np.ndarray) -> VerifiedPoints:
+        """These points plus more, one array per per-point field (all of them)."""
+        return dataclasses.replace(
+            self, **{name: np.r_[getattr(self, name), a] for name, a in more.items()}
+        )
+
     def with_consensus(
         self,
         pts_in_world: F64,
@@ -122,17 +128,16 @@ class VerifiedPoints:
         their own: NaN; hits and views not counted: 0)."""
         n = len(pts_in_world)
         zeros = np.zeros(n, np.int32)
-        return dataclasses.replace(
-            self,
-            pts_in_world=np.r_[self.pts_in_world, pts_in_world],
-            hits=np.r_[self.hits, zeros],
-            views=np.r_[self.views, zeros],
-            crossing_views=np.r_[self.crossing_views, zeros],
-            crossing_hits=np.r_[self.crossing_hits, zeros],
-            posterior=np.r_[self.posterior, np.full(n, np.nan)],
-            pair_index=np.r_[self.pair_index, pair_index],
-            refined=np.r_[self.refined, np.zeros(n, bool)],
-            primitive_index=np.r_[self.primitive_index, primitive_index],
+        return self._appended(
+            pts_in_world=pts_in_world,
+            hits=zeros,
+            views=zeros,
+            crossing_views=zeros,
+            crossing_hits=zeros,
+            posterior=np.full(n, np.nan),
+            pair_index=pair_index,
+            refined=np.zeros(n, bool),
+            primitive_index=primitive_index,
         )
 
     def with_pending(self, take: npt.NDArray[np.int64], min_posterior: float) -> VerifiedPoints:
@@ -145,19 +150,19 @@ class VerifiedPoints:
         assert (post >= min_posterior).all()
         rest = np.ones(len(p), bool)
         rest[take] = False
-        return dataclasses.replace(
-            self,
-            pts_in_world=np.r_[self.pts_in_world, p.pts_in_world[take]],
-            hits=np.r_[self.hits, p.hits[take]],
-            views=np.r_[self.views, p.views[take]],
-            crossing_views=np.r_[self.crossing_views, p.crossing_views[take]],
-            crossing_hits=np.r_[self.crossing_hits, p.crossing_hits[take]],
-            posterior=np.r_[self.posterior, post],
-            pair_index=np.r_[self.pair_index, p.pair_index[take]],
-            refined=np.r_[self.refined, p.refined[take]],
-            primitive_index=np.r_[self.primitive_index, p.primitive_index[take]],
-            pending=p.subset(rest) if rest.any() else None,
+        taken = p.subset(take)
+        out = self._appended(
+            pts_in_world=taken.pts_in_world,
+            hits=taken.hits,
+            views=taken.views,
+            crossing_views=taken.crossing_views,
+            crossing_hits=taken.crossing_hits,
+            posterior=post,
+            pair_index=taken.pair_index,
+            refined=taken.refined,
+            primitive_index=taken.primitive_index,
         )
+        return dataclasses.replace(out, pending=p.subset(rest) if rest.any() else None)
 
 
 @dataclass(frozen=True, eq=False)
@@ -178,17 +183,10 @@ class PendingPoints:
     def __len__(self) -> int:
         return len(self.pts_in_world)
 
-    def subset(self, keep: npt.NDArray[np.bool_]) -> PendingPoints:
-        return PendingPoints(
-            self.pts_in_world[keep],
-            self.evidence[keep],
-            self.hits[keep],
-            self.views[keep],
-            self.crossing_views[keep],
-            self.crossing_hits[keep],
-            self.pair_index[keep],
-            self.refined[keep],
-            self.primitive_index[keep],
+    def subset(self, keep: npt.NDArray[np.bool_] | npt.NDArray[np.int64]) -> PendingPoints:
+        """The points ``keep`` (a mask or indices) selects."""
+        return dataclasses.replace(
+            self, **{f.name: getattr(self, f.name)[keep] for f in dataclasses.fields(self)}
         )
 
 

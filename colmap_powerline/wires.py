@@ -219,6 +219,23 @@ def _fit(pts: F64, idx: I64, azimuth_xy: F64, options: WiresOptions) -> FittedWi
     )
 
 
+def nearest_wire(
+    wires: list[FittedWire], pts: F64, reach: float, tolerance: F64
+) -> npt.NDArray[np.int64]:
+    """(N,) the index of the wire whose curve, continued ``reach`` past its ends, passes
+    nearest each point within that wire's ``tolerance`` (-1: none)."""
+    if not wires:
+        return np.full(len(pts), -1, np.int64)
+    dist = np.full((len(wires), len(pts)), np.inf)
+    for k, w in enumerate(wires):
+        s = w.plane_coords(pts)[0]
+        inside = np.flatnonzero((s >= w.s_range[0] - reach) & (s <= w.s_range[1] + reach))
+        d = w.distance(pts[inside])
+        dist[k, inside] = np.where(d < tolerance[k], d, np.inf)
+    best = np.argmin(dist, axis=0)
+    return np.where(np.isfinite(dist[best, np.arange(len(pts))]), best, -1)
+
+
 def absorb_points(
     wires: list[FittedWire],
     pts_in_world: F64,
@@ -234,15 +251,13 @@ def absorb_points(
     """
     if not wires or len(new_idx) == 0:
         return wires, np.zeros(0, np.int64), np.zeros(0, np.int64)
-    cand = pts_in_world[new_idx]
-    dist = np.stack([w.distance(cand) for w in wires])
-    for k, w in enumerate(wires):
-        s = w.plane_coords(cand)[0]
-        dist[k, (s < w.s_range[0] - options.max_gap) | (s > w.s_range[1] + options.max_gap)] = (
-            np.inf
-        )
-    best = np.argmin(dist, axis=0)
-    close = dist[best, np.arange(len(cand))] < options.inlier_distance
+    best = nearest_wire(
+        wires,
+        pts_in_world[new_idx],
+        options.max_gap,
+        np.full(len(wires), options.inlier_distance),
+    )
+    close = best >= 0
     az = np.deg2rad(azimuth_deg)
     along = np.array([np.sin(az), np.cos(az)])
     out = []
