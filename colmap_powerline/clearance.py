@@ -186,6 +186,7 @@ SUPPORT_COLUMNS = (
     "hit_rate",
     "confidence",
     "geometry",
+    "traced_share",
     "advice",
 )
 
@@ -223,6 +224,7 @@ def measures_csv(
             sup = supports[k]
             row += [sup.views, sup.strips, sup.crossing_views, f"{sup.hit_rate:.3f}"]
             row += ["" if sup.confidence is None else f"{sup.confidence:.4f}", sup.geometry]
+            row.append("" if sup.traced_share is None else f"{sup.traced_share:.3f}")
             row.append(sup.advice or "")
         writer.writerow(row)
     return buf.getvalue()

@@ -49,6 +49,7 @@ from .support import (
     support_members,
     wire_support,
 )
+from .trace import TraceOptions, trace_wires
 from .triangulate import Primitives, TriangulateOptions, triangulate_pair, wire_centres
 from .verify import VerifiedPoints, VerifyOptions, WireMaskFn, verify_primitives
 from .wires import (
@@ -75,6 +76,12 @@ CONTINUATION_DISTANCE = 0.3
 # twice the residual adds 1-2 % more at 3.1-3.5 cm).
 CONSENSUS_SIGMAS = 1.5
 
+# A confirmed wire that the views which would fix it find at fewer than this share of its
+# places is dropped (:mod:`colmap_powerline.trace`). On the shared generator's flight across
+# and area survey the true wires are found at 59-100 % of those places, the false pairings
+# at none.
+MIN_TRACED_SHARE = 0.2
+
 # Confirmed wires take the points the views favour in steps of ``WiresOptions.max_gap`` past
 # their ends; this many steps reach past any span.
 MAX_ABSORB_STEPS = 40
@@ -89,6 +96,7 @@ class ReconstructionOptions:
     verify: VerifyOptions = field(default_factory=VerifyOptions)
     wires: WiresOptions = field(default_factory=WiresOptions)
     support: SupportOptions = field(default_factory=SupportOptions)
+    trace: TraceOptions = field(default_factory=TraceOptions)
     sfm: SfmOptions = field(default_factory=SfmOptions)  # used when no model is given
     skip_bad_images: bool = False  # drop missing/undecodable images with a warning
     min_clearance_m: float | None = None  # flag wire stretches closer to the ground
@@ -509,6 +517,27 @@ def reconstruct(
         wires, supports = _without_members(wires, supports, corridor, options)
     if wires:
         wires, verified = _consensus(wires, verified, primitives)
+        t1 = time.perf_counter()
+        wires, traced = trace_wires(
+            scene,
+            wires,
+            verified.pts_in_world,
+            crop_wire_mask(options.detect, options.verify.template_length_px),
+            corridor.azimuth_deg,
+            options.trace,
+            options.wires,
+            options.verify.tolerance_px,
+            options.verify.num_threads,
+            options.verify.margin_px,
+        )
+        verified = verified.with_traced(traced.pts_in_world, traced.views)
+        decoded += traced.decoded
+        supports = [
+            dataclasses.replace(s, traced_share=None if np.isnan(f) else round(float(f), 3))
+            for s, f in zip(supports, traced.share, strict=True)
+        ]
+        wires, supports = _without_untraced(wires, supports)
+        timings["trace"] = time.perf_counter() - t1
     labels = np.full(len(verified), -1, np.int64)
     for w in wires:
         labels[w.point_indices] = w.wire_id
@@ -618,6 +647,31 @@ def _without_members(
     return (
         [dataclasses.replace(w, wire_id=i) for i, w in enumerate(kept)],
         [dataclasses.replace(s, wire_id=i) for i, s in enumerate(sup)],
+    )
+
+
+def _without_untraced(
+    wires: list[FittedWire], supports: list[WireSupport]
+) -> tuple[list[FittedWire], list[WireSupport]]:
+    """The wires without those the views would fix but do not find (traced share below
+    ``MIN_TRACED_SHARE``), renumbered from 0."""
+    kept = [
+        k
+        for k, s in enumerate(supports)
+        if s.traced_share is None or s.traced_share >= MIN_TRACED_SHARE
+    ]
+    for k in sorted(set(range(len(wires))) - set(kept)):
+        logger.info(
+            "trace: wire %d dropped (%.0f m at %.1f above the ground): the views that would "
+            "fix it find a wire at %.0f %% of its places (a false pairing)",
+            wires[k].wire_id,
+            wires[k].s_range[1] - wires[k].s_range[0],
+            supports[k].height_above_ground,
+            100 * (supports[k].traced_share or 0.0),
+        )
+    return (
+        [dataclasses.replace(wires[k], wire_id=i) for i, k in enumerate(kept)],
+        [dataclasses.replace(supports[k], wire_id=i) for i, k in enumerate(kept)],
     )
 
 

@@ -86,6 +86,9 @@ class WireSupport:
     # false pairing (the confidence then comes from the other views)
     height_above_ground: float  # median height of the wire above the ground surface
     advice: str | None = None  # what to fly to make weak geometry strong
+    traced_share: float | None = None  # share of the places along it where the views would
+    # fix the wire (three or more, offset across it enough) at which they found it
+    # (:mod:`colmap_powerline.trace`; None: no such places)
     supported_s: tuple[float, float] | None = None  # (not written) when the views reject
     # the wire as a whole but support one stretch of it: that stretch along its plane
 

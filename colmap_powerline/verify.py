@@ -140,6 +140,24 @@ class VerifiedPoints:
             primitive_index=primitive_index,
         )
 
+    def with_traced(self, pts_in_world: F64, views: npt.NDArray[np.int32]) -> VerifiedPoints:
+        """These points plus points measured along the confirmed wires in the views
+        (:mod:`colmap_powerline.trace`): ``views`` agree on each; no pair, primitive or
+        posterior of their own (-1, -1, NaN)."""
+        n = len(pts_in_world)
+        zeros = np.zeros(n, np.int32)
+        return self._appended(
+            pts_in_world=pts_in_world,
+            hits=views.astype(np.int32),
+            views=views.astype(np.int32),
+            crossing_views=zeros,
+            crossing_hits=zeros,
+            posterior=np.full(n, np.nan),
+            pair_index=np.full(n, -1, np.int32),
+            refined=np.ones(n, bool),
+            primitive_index=np.full(n, -1, np.int64),
+        )
+
     def with_pending(self, take: npt.NDArray[np.int64], min_posterior: float) -> VerifiedPoints:
         """These points plus the pending ones ``take`` (their posterior with the prior 1/2 of
         a point whose match is settled), the other pending points still pending."""
@@ -248,14 +266,17 @@ def image_wire_direction_deg(view: SceneImage, pt_in_world: F64, azimuth_deg: fl
 
 
 def _wire_offsets(response: np.ndarray, uv: F64, normal: F64, reach: float) -> F64:
-    """Signed distance (px, along ``normal``) from each point to the wire centre near it.
+    """Signed distance (px, along ``normal``: (2,) or one per point (N, 2)) from each point
+    to the wire centre near it.
 
     The template response is sampled across the wire at whole-pixel steps; the centre is the
     parabola vertex through the strongest sample and its neighbours. NaN when the strongest
     sample is at the end of the reach (no peak there).
     """
     steps = np.arange(-np.ceil(reach), np.ceil(reach) + 1)
-    xy = uv[:, None, :] - 0.5 + steps[None, :, None] * normal  # array index coordinates
+    normal = np.asarray(normal, np.float64)
+    across = normal[None, None, :] if normal.ndim == 1 else normal[:, None, :]  # one or (N, 2)
+    xy = uv[:, None, :] - 0.5 + steps[None, :, None] * across  # array index coordinates
     flat = xy.reshape(-1, 2).astype(np.float32)
     width = 4096  # cv2.remap maps must stay below 32767 px a side
     pad = (-len(flat)) % width

@@ -271,6 +271,15 @@ def absorb_points(
     return out, taken, np.array([wires[b].wire_id for b in best[close]], np.int64)
 
 
+def refit(
+    wire: FittedWire, pts_in_world: F64, idx: I64, azimuth_xy: F64, options: WiresOptions
+) -> FittedWire:
+    """The wire fitted again to the points ``pts_in_world[idx]`` (same id); the wire as it
+    was when they fit no curve."""
+    fit = _fit(pts_in_world, idx, azimuth_xy, options)
+    return wire if fit is None else dataclasses.replace(fit, wire_id=wire.wire_id)
+
+
 def trim_wire(
     wire: FittedWire,
     pts_in_world: F64,

@@ -1,0 +1,495 @@
+"""Measuring confirmed wires in every view: guided multi-image matching along the curve.
+
+The pairs' primitives reach only where one pair's two images both see a wire, and where
+few other views see it a true primitive cannot become sure on its own: a confirmed wire's
+points then have gaps, and stop short of where the images still see it (on the shared
+generator's flight across the line, the points reach 57–94 % of each conductor while the
+curve through them reaches 77–100 %).
+
+Once a wire is confirmed its curve predicts where every view sees it. Along the curve, every
+``step_px`` pixels of the view nearest to it, each view that sees the place looks for the
+wire centre within ``reach_px`` of the projection, across the wire's direction in that view
+(the verification's line template and its sub-pixel peak). A wire centre found at image
+offset ``o`` says that the wire point lies on the plane through the camera and that image
+line: one linear equation in the two unknown offsets of the point across the wire's tangent.
+Two views offset across the wires fix both; more views are redundant, and the one that
+disagrees most (a neighbouring wire, a road marking) is dropped while any disagrees by more
+than the verification's tolerance. A point is kept where at least two views agree and its
+predicted precision — from the geometry of those views and the image noise measured on the
+redundant points themselves — is within ``WiresOptions.inlier_distance / 4``. Views along
+the wires from one strip give nearly the same plane and cannot fix a point: only their
+combination with views offset across the wire does.
+
+The wires are then refitted to their measured and traced points, and traced again past their
+new ends, ``extend`` at a time, while the views keep finding them there.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import time
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import numpy.typing as npt
+from scipy.spatial import cKDTree
+from scipy.stats import chi2
+
+from .scene import Scene, SceneImage, read_image
+from .verify import (
+    WireMaskFn,
+    _projection_jacobian,
+    _roughly_in_view,
+    _wire_offsets,
+    image_wire_direction_deg,
+)
+from .wires import FittedWire, WiresOptions, refit
+
+logger = logging.getLogger(__name__)
+
+F64 = npt.NDArray[np.float64]
+I64 = npt.NDArray[np.int64]
+
+
+# Views that must agree on a traced point: two fix it, a third checks it (a view that
+# found a tower member or a road line instead of the wire is dropped only when others agree).
+MIN_VIEWS = 3
+
+# A view's offset on a wire is estimated from at least this many places the others check.
+MIN_BIAS_PLACES = 20
+
+# A wire's traced share is judged on at least this many places where the views would fix it
+# (a metre of wire at the half-scale GSD).
+MIN_MEASURABLE_PLACES = 10
+
+
+@dataclass(kw_only=True)
+class TraceOptions:
+    enabled: bool = True  # measure the confirmed wires in every view that sees them
+    step_px: float = 2.5  # spacing of the traced places, in pixels of the nearest view
+    reach_px: float = 3.0  # the wire centre is searched this far either side of the curve
+    extend: float = 5.0  # then past the wire's ends by this much per round (model units)
+    max_rounds: int = 20  # at most this many rounds past the ends
+
+    def __post_init__(self) -> None:
+        if not self.step_px > 0:
+            raise ValueError(f"{self.step_px=} but expected > 0")
+        if not 0.5 <= self.reach_px <= 20:
+            raise ValueError(f"{self.reach_px=} but expected in [0.5, 20] px")
+        if not self.extend >= 0:
+            raise ValueError(f"{self.extend=} but expected ≥ 0")
+        if self.max_rounds < 0:
+            raise ValueError(f"{self.max_rounds=} but expected ≥ 0")
+
+
+@dataclass(frozen=True, eq=False)
+class TracedPoints:
+    """Wire points measured in the views along the confirmed curves."""
+
+    pts_in_world: F64  # (N, 3)
+    wire_id: I64  # (N,) the wire traced
+    views: npt.NDArray[np.int32]  # (N,) views that agree on the point
+    sigma: F64  # (N,) predicted precision (largest standard deviation, model units)
+    decoded: list[Path]  # the images decoded
+    share: F64  # (W,) per wire given: the share of the places where the views would fix it
+    # (enough views, offset across it enough) at which they found it (NaN: too few such)
+
+    def __len__(self) -> int:
+        return len(self.pts_in_world)
+
+
+@dataclass(frozen=True, eq=False)
+class _Places:
+    """The places traced in one round: points on the curves and their frames."""
+
+    pts: F64  # (M, 3) on the curve
+    wire: I64  # (M,) index into the wires
+    across: F64  # (M, 2, 3) the two unit directions perpendicular to the curve's tangent
+    tangent: F64  # (M, 3)
+
+
+def _frames(wire: FittedWire, s: F64) -> tuple[F64, F64, F64]:
+    """Points, unit tangents and the (horizontal, upward) normals of a wire at ``s``."""
+    pts = wire.points(s)
+    d = wire.plane_direction_xy
+    slope = np.sinh((s - wire.s0) / wire.catenary_a)
+    tangent = np.c_[np.outer(np.ones(len(s)), d), slope]
+    tangent /= np.linalg.norm(tangent, axis=1, keepdims=True)
+    horizontal = np.tile(np.r_[d[1], -d[0], 0.0], (len(s), 1))
+    up = np.cross(horizontal, tangent)
+    up *= np.sign(up[:, 2:3])
+    return pts, tangent, np.stack([horizontal, up], axis=1)
+
+
+def _observe(
+    view: SceneImage,
+    places: _Places,
+    wire_mask: WireMaskFn,
+    azimuth_deg: float,
+    reach_px: float,
+    margin_px: int,
+) -> tuple[I64, F64, F64] | None:
+    """One view's observations of the places it sees (no other wire near): (place,
+    Jacobian row across the wire in the image (px per model unit), offset to the wire
+    centre (px; NaN where it found none)), or None."""
+    cand = np.flatnonzero(_roughly_in_view(view, places.pts))
+    if len(cand) == 0:
+        return None
+    uv, _, inside = view.project(places.pts[cand])
+    idx, uv = cand[inside], uv[inside]
+    if len(idx) == 0:
+        return None
+    # The wire's direction in the image at each place, from the projected tangent.
+    jac = _projection_jacobian(view, places.pts[idx])  # (n, 2, 3)
+    t_img = np.einsum("nij,nj->ni", jac, places.tangent[idx])
+    t_img /= np.linalg.norm(t_img, axis=1, keepdims=True)
+    normal = np.c_[-t_img[:, 1], t_img[:, 0]]
+    # A place another wire passes as near in this image is ambiguous here.
+    tree = cKDTree(uv)
+    near = tree.query_pairs(reach_px + 2, output_type="ndarray")
+    other = places.wire[idx[near[:, 0]]] != places.wire[idx[near[:, 1]]] if len(near) else []
+    ambiguous = np.zeros(len(idx), bool)
+    if len(near):
+        ambiguous[near[other].ravel()] = True
+    keep = ~ambiguous
+    idx, uv, jac, normal = idx[keep], uv[keep], jac[keep], normal[keep]
+    if len(idx) == 0:
+        return None
+    px = np.floor(uv).astype(np.int64)
+    x0 = max(int(px[:, 0].min()) - margin_px, 0)
+    y0 = max(int(px[:, 1].min()) - margin_px, 0)
+    x1 = min(int(px[:, 0].max()) + margin_px + 1, view.width)
+    y1 = min(int(px[:, 1].max()) + margin_px + 1, view.height)
+    image = read_image(view.path)
+    direction = image_wire_direction_deg(view, places.pts[idx[len(idx) // 2]], azimuth_deg)
+    wm = wire_mask(view, image, direction, (x0, y0, x1, y1))
+    del image
+    offset = _wire_offsets(wm.response, uv - [x0, y0], normal, reach_px)
+    found = np.isfinite(offset)
+    # The centre must be a wire pixel of the detector (within a pixel), not just a peak.
+    centre = uv[found] + offset[found, None] * normal[found] - [x0, y0]
+    near_wire = wm.dilated(1.0)
+    cx = np.clip(np.floor(centre[:, 0]).astype(np.int64), 0, near_wire.shape[1] - 1)
+    cy = np.clip(np.floor(centre[:, 1]).astype(np.int64), 0, near_wire.shape[0] - 1)
+    found[np.flatnonzero(found)[~near_wire[cy, cx]]] = False
+    rows = np.einsum("ni,nij->nj", normal, jac)
+    return idx, rows, np.where(found, offset, np.nan)
+
+
+def _solve(
+    rows: F64, offsets: F64, across: F64, tolerance_px: float
+) -> tuple[F64, npt.NDArray[np.bool_], F64] | None:
+    """The offset (2,) of one place across its curve from its views' equations, the views
+    kept, and the (2, 2) normal matrix; None when fewer than two views agree."""
+    a = rows @ across.T  # (n, 2)
+    keep = np.ones(len(a), bool)
+    while keep.sum() >= 2:
+        ak, bk = a[keep], offsets[keep]
+        normal = ak.T @ ak
+        if np.linalg.cond(normal) > 1e8:
+            return None
+        x = np.linalg.solve(normal, ak.T @ bk)
+        res = offsets - a @ x
+        worst = np.argmax(np.where(keep, np.abs(res), -1.0))
+        if abs(res[worst]) <= tolerance_px:
+            return x, keep, normal
+        keep[worst] = False
+    return None
+
+
+@dataclass(frozen=True, eq=False)
+class _Solution:
+    x: F64  # (M, 2) offsets across the curve (NaN: not measured)
+    rss: F64  # (M,) residual sum of squares (px²)
+    n_views: npt.NDArray[np.int32]  # (M,) views kept
+    normal: F64  # (M, 2, 2) normal matrices (px² per model unit²)
+    seen: npt.NDArray[np.int32]  # (M,) views that see the place, no other wire near
+    normal_seen: F64  # (M, 2, 2) the normal matrix had they all found the wire
+
+
+def _solve_places(
+    m: int, place: I64, rows: F64, offsets: F64, across: F64, tolerance_px: float
+) -> tuple[_Solution, F64, npt.NDArray[np.bool_]]:
+    """Every place's solution from its observations (offset NaN: the view found no wire
+    there), and each observation's residual and whether it was kept."""
+    x = np.full((m, 2), np.nan)
+    rss = np.zeros(m)
+    n_views = np.zeros(m, np.int32)
+    normal = np.zeros((m, 2, 2))
+    res = np.full(len(place), np.nan)
+    kept = np.zeros(len(place), bool)
+    a_all = np.einsum("nj,nkj->nk", rows, across[place])  # (n, 2)
+    normal_seen = np.zeros((m, 2, 2))
+    np.add.at(normal_seen, place, a_all[:, :, None] * a_all[:, None, :])
+    seen = np.bincount(place, minlength=m).astype(np.int32)
+    found = np.flatnonzero(np.isfinite(offsets))
+    order = found[np.argsort(place[found], kind="stable")]
+    bounds = np.flatnonzero(np.diff(place[order])) + 1
+    for obs in np.split(order, bounds) if len(order) else []:
+        if len(obs) < 2:
+            continue
+        i = place[obs[0]]
+        sol = _solve(rows[obs], offsets[obs], across[i], tolerance_px)
+        if sol is None:
+            continue
+        x[i], keep, normal[i] = sol
+        r = offsets[obs] - a_all[obs] @ x[i]
+        res[obs], kept[obs] = r, keep
+        rss[i], n_views[i] = float((r[keep] ** 2).sum()), int(keep.sum())
+    return _Solution(x, rss, n_views, normal, seen, normal_seen), res, kept
+
+
+def _trace_round(
+    scene: Scene,
+    places: _Places,
+    wire_mask: WireMaskFn,
+    azimuth_deg: float,
+    reach_px: float,
+    tolerance_px: float,
+    num_threads: int,
+    margin_px: int,
+    bias: dict[tuple[int, int], float],
+) -> tuple[_Solution, list[Path]]:
+    """Each place measured in the views; ``bias`` (view, wire) → the offset a view finds on a
+    wire beside where the others put it (its pose, the wire's look there): estimated in the
+    first round (when empty), subtracted in every round."""
+    place_l, view_l, rows_l, offsets_l = [], [], [], []
+    decoded: list[Path] = []
+
+    def look(v: int):
+        return v, _observe(scene.images[v], places, wire_mask, azimuth_deg, reach_px, margin_px)
+
+    with ThreadPoolExecutor(max_workers=num_threads) as pool:
+        for v, obs in pool.map(look, range(len(scene.images))):
+            if obs is None:
+                continue
+            decoded.append(scene.images[v].path)
+            place_l.append(obs[0])
+            view_l.append(np.full(len(obs[0]), v, np.int64))
+            rows_l.append(obs[1])
+            offsets_l.append(obs[2])
+    m = len(places.pts)
+    if not place_l:
+        empty = np.zeros(0)
+        return _solve_places(
+            m, empty.astype(np.int64), empty.reshape(0, 3), empty, places.across, tolerance_px
+        )[0], decoded
+    place, view = np.concatenate(place_l), np.concatenate(view_l)
+    rows, offsets = np.concatenate(rows_l), np.concatenate(offsets_l)
+    wire = places.wire[place]
+    if not bias:
+        sol, res, kept = _solve_places(m, place, rows, offsets, places.across, tolerance_px)
+        # From the residuals at places the other views check (more than two views kept).
+        checked = kept & (sol.n_views[place] > 2)
+        for v, k in set(zip(view[checked].tolist(), wire[checked].tolist(), strict=True)):
+            r = res[checked & (view == v) & (wire == k)]
+            if len(r) >= MIN_BIAS_PLACES:
+                bias[v, k] = float(np.median(r))
+    if bias:
+        shift = [bias.get(vk, 0.0) for vk in zip(view.tolist(), wire.tolist(), strict=True)]
+        offsets = offsets - np.array(shift)
+    sol, _, _ = _solve_places(m, place, rows, offsets, places.across, tolerance_px)
+    return sol, decoded
+
+
+def _places(wires: list[FittedWire], ranges: list[list[tuple[float, float]]], step: F64):
+    pts, wire, across, tangent = [], [], [], []
+    for k, (w, rs) in enumerate(zip(wires, ranges, strict=True)):
+        for lo, hi in rs:
+            if hi <= lo:
+                continue
+            n = max(int(np.ceil((hi - lo) / step[k])), 1)
+            s = lo + (np.arange(n) + 0.5) * (hi - lo) / n
+            p, t, acr = _frames(w, s)
+            pts.append(p)
+            tangent.append(t)
+            across.append(acr)
+            wire.append(np.full(len(s), k, np.int64))
+    if not pts:
+        return None
+    return _Places(
+        np.concatenate(pts), np.concatenate(wire), np.concatenate(across), np.concatenate(tangent)
+    )
+
+
+def trace_wires(
+    scene: Scene,
+    wires: list[FittedWire],
+    pts_in_world: F64,
+    wire_mask: WireMaskFn,
+    azimuth_deg: float,
+    options: TraceOptions,
+    wires_options: WiresOptions,
+    tolerance_px: float,
+    num_threads: int = 2,
+    margin_px: int = 24,
+) -> tuple[list[FittedWire], TracedPoints]:
+    """Measure each confirmed wire in every view that sees it (module docstring).
+
+    Args:
+        scene: the oriented scene.
+        wires: the confirmed wires, fitted to ``pts_in_world``.
+        pts_in_world: the measured points the wires index.
+        wire_mask: the verification's detector.
+        azimuth_deg: the wires' horizontal direction.
+        tolerance_px: a view disagreeing with the others by more than this is dropped.
+
+    Returns:
+        The wires refitted to their measured and traced points (indices past
+        ``len(pts_in_world)`` are traced points, in the order returned), and the traced points.
+    """
+    empty = TracedPoints(
+        np.zeros((0, 3)),
+        np.zeros(0, np.int64),
+        np.zeros(0, np.int32),
+        np.zeros(0),
+        [],
+        np.full(len(wires), np.nan),
+    )
+    if not options.enabled or not wires:
+        return wires, empty
+    t0 = time.perf_counter()
+    centres = scene.centers_in_world
+    # Place spacing: step_px pixels of the nearest camera at each wire.
+    step = np.array(
+        [
+            options.step_px
+            * float(
+                np.min(np.linalg.norm(centres - w.points(np.array([np.mean(w.s_range)])), axis=1))
+            )
+            / scene.images[0].focal_px
+            for w in wires
+        ]
+    )
+    ranges = [[w.s_range] for w in wires]
+    out_wire: list[I64] = []
+    out_views: list[npt.NDArray[np.int32]] = []
+    out_sigma: list[F64] = []
+    decoded: list[Path] = []
+    all_pts = pts_in_world
+    # A traced point lies within the wires' inlier distance of its true place with 98 %
+    # probability (2.33 standard deviations, one-sided in its worst direction).
+    max_sigma = wires_options.inlier_distance / 2.33
+    sigma_px: float | None = None
+    share = np.full(len(wires), np.nan)
+    bias: dict[tuple[int, int], float] = {}
+    az = np.deg2rad(azimuth_deg)
+    along = np.array([np.sin(az), np.cos(az)])
+    for round_ in range(options.max_rounds + 1):
+        places = _places(wires, ranges, step)
+        if places is None:
+            break
+        sol, dec = _trace_round(
+            scene,
+            places,
+            wire_mask,
+            azimuth_deg,
+            options.reach_px,
+            tolerance_px,
+            num_threads,
+            margin_px,
+            bias,
+        )
+        x, rss, n_views, normal = sol.x, sol.rss, sol.n_views, sol.normal
+        decoded += dec
+        solved = np.isfinite(x[:, 0])
+        if sigma_px is None:
+            # The image noise of a wire centre, from the places seen by more views than the
+            # two unknowns need.
+            redundant = solved & (n_views > 2)
+            if redundant.sum() >= 10:
+                # Robust to the places where one view found a neighbouring line within the
+                # tolerance: median of each place's residuals over the chi-square median.
+                dof = n_views[redundant] - 2
+                sigma_px = float(np.sqrt(np.median(rss[redundant] / chi2.median(dof))))
+            else:
+                sigma_px = tolerance_px / 2
+            logger.info(
+                "trace: wire centres measured to %.2f px (%d places seen by more than two views)",
+                sigma_px,
+                int(redundant.sum()),
+            )
+        sigma = np.full(len(x), np.inf)
+        ok = np.flatnonzero(solved)
+        if len(ok):
+            cov = np.linalg.inv(normal[ok]) * sigma_px**2
+            sigma[ok] = np.sqrt(np.linalg.eigvalsh(cov)[:, -1])
+        # Two views fix a point with no check on it; a third makes the outlier test work.
+        good = solved & (sigma <= max_sigma) & (n_views >= MIN_VIEWS)
+        if round_ == 0:
+            # Where the views would fix the wire (enough of them, crossing enough), had they
+            # all found it: the share of those places where they did.
+            seen_ok = sol.seen >= MIN_VIEWS
+            sigma_seen = np.full(len(x), np.inf)
+            with np.errstate(all="ignore"):
+                cov = np.linalg.pinv(sol.normal_seen[seen_ok]) * sigma_px**2
+            sigma_seen[seen_ok] = np.sqrt(np.abs(np.linalg.eigvalsh(cov)[:, -1]))
+            measurable = seen_ok & (sigma_seen <= max_sigma)
+            for k in range(len(wires)):
+                mine = measurable & (places.wire == k)
+                if mine.sum() >= MIN_MEASURABLE_PLACES:
+                    share[k] = float((good & mine).sum() / mine.sum())
+        pts = places.pts + np.einsum("mi,mij->mj", np.where(good[:, None], x, 0.0), places.across)
+        new_wires = list(wires)
+        new_ranges: list[list[tuple[float, float]]] = []
+        for k, w in enumerate(wires):
+            mine = np.flatnonzero(good & (places.wire == k))
+            if len(mine) == 0:
+                new_ranges.append([])
+                continue
+            base = len(all_pts)
+            all_pts = np.r_[all_pts, pts[mine]]
+            out_wire.append(np.full(len(mine), w.wire_id, np.int64))
+            out_views.append(n_views[mine])
+            out_sigma.append(sigma[mine])
+            idx = np.r_[w.point_indices, base + np.arange(len(mine))]
+            fit = refit(w, all_pts, idx, along, wires_options)
+            lo, hi = fit.s_range
+            # An end goes on while the views found the wire over most of the last extension.
+            ends = []
+            if round_ == 0 or lo < w.s_range[0] - options.extend / 2:
+                ends.append((lo - options.extend, lo))
+            if round_ == 0 or hi > w.s_range[1] + options.extend / 2:
+                ends.append((hi, hi + options.extend))
+            new_ranges.append(ends)
+            new_wires[k] = fit
+        logger.info(
+            "trace round %d: %d of %d places measured (%d seen by two views or more)",
+            round_,
+            int(good.sum()),
+            len(good),
+            int(solved.sum()),
+        )
+        wires = new_wires
+        ranges = new_ranges
+        if options.extend == 0:
+            break
+    # The traced points are those the refitted wires keep (within their inlier distance of
+    # the curve: not a place past a support where another curve goes on), in wire order.
+    n0 = len(pts_in_world)
+    used = np.unique(np.concatenate([w.point_indices[w.point_indices >= n0] for w in wires]))
+    remap = np.full(len(all_pts), -1, np.int64)
+    remap[:n0] = np.arange(n0)
+    remap[used] = n0 + np.arange(len(used))
+    wires = [dataclasses.replace(w, point_indices=remap[w.point_indices]) for w in wires]
+    rows = used - n0
+    traced = TracedPoints(
+        all_pts[used],
+        np.concatenate(out_wire)[rows] if out_wire else np.zeros(0, np.int64),
+        np.concatenate(out_views)[rows] if out_views else np.zeros(0, np.int32),
+        np.concatenate(out_sigma)[rows] if out_sigma else np.zeros(0),
+        decoded,
+        share,
+    )
+    logger.info(
+        "trace: %d points measured along %d wires in %.1f s; share of the places the views "
+        "would fix where they found the wire: %s",
+        len(traced),
+        len(wires),
+        time.perf_counter() - t0,
+        np.round(share, 2).tolist(),
+    )
+    return wires, traced
