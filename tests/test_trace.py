@@ -59,9 +59,7 @@ def test_traced_points_measure_the_wire_and_reach_past_the_curve(small_scene, co
     """Curves over the middle 40 % of each conductor, 5 cm too high: the traced points lie
     on the true wires (not on the curves), and the wires grow over most of the span."""
     truth = conductors[:3]
-    wires, pts = _with_points(
-        [_curve(t, k, 0.3, 0.7, 0.05) for k, t in enumerate(truth)]
-    )
+    wires, pts = _with_points([_curve(t, k, 0.3, 0.7, 0.05) for k, t in enumerate(truth)])
     out, traced = trace_wires(
         small_scene,
         wires,
@@ -112,3 +110,67 @@ def test_trace_options_are_checked():
         TraceOptions(reach_px=0)
     with pytest.raises(ValueError, match="step_px"):
         TraceOptions(step_px=float("nan"))
+
+
+def _support(wire_id: int, confidence: float | None, traced_share: float | None = None):
+    from colmap_powerline.support import WireSupport
+
+    return WireSupport(
+        wire_id=wire_id, views=8, strips=3, crossing_views=4, hit_rate=0.3,
+        crossing_hit_rate=0.3, chance=0.1, confidence=confidence, geometry="strong",
+        height_above_ground=20.0, traced_share=traced_share,
+    )  # fmt: skip
+
+
+def test_wires_the_views_would_fix_but_do_not_find_are_dropped(conductors):
+    from colmap_powerline.pipeline import MIN_TRACED_SHARE, _without_untraced
+
+    wires = [_curve(t, k, 0.2, 0.8, 0.0) for k, t in enumerate(conductors[:3])]
+    sup = [_support(0, 1.0, 0.9), _support(1, 1.0, MIN_TRACED_SHARE / 2), _support(2, 1.0)]
+    kept, kept_sup = _without_untraced(wires, sup)
+    # The one found at too few places goes; one no view could fix (None) stays; renumbered.
+    assert [w.wire_id for w in kept] == [0, 1]
+    assert [s.traced_share for s in kept_sup] == [0.9, None]
+    assert kept[1].z0 == wires[2].z0
+
+
+def test_a_rejected_wire_the_views_find_gets_a_second_look(small_scene, conductors):
+    """Of the wires the hit rates rejected, a true conductor joins the wires (traced in
+    full); a curve where no wire hangs, and a stretch of a wire already there, do not."""
+    from colmap_powerline.pairs import WireCorridor
+    from colmap_powerline.pipeline import ReconstructionOptions, _second_look
+    from colmap_powerline.verify import VerifiedPoints
+
+    confirmed = [_curve(conductors[0], 0, 0.1, 0.9, 0.0)]
+    rejected = [
+        _curve(conductors[1], 1, 0.2, 0.8, 0.0),  # true, rejected by the hit rates
+        _curve(conductors[2], 2, 0.2, 0.8, -6.0),  # no wire there
+        _curve(conductors[0], 3, 0.3, 0.6, 0.0),  # a stretch of the confirmed wire
+    ]
+    both, pts = _with_points(confirmed + rejected)
+    n = len(pts)
+    ones = np.ones(n, np.int32)
+    verified = VerifiedPoints(
+        pts, ones, ones, ones, ones, np.full(n, 0.999), 0 * ones, np.ones(n, bool), [],
+        np.full(3, 0.8), [], np.arange(n),
+    )  # fmt: skip
+    corridor = WireCorridor(
+        azimuth_deg=_azimuth(confirmed[0]), centre_xy=np.zeros(2), half_width=30.0,
+        wires_half_width=10.0, s_range=(-60.0, 60.0), height=20.0, height_range=(10.0, 40.0),
+        from_images=True, measured=True,
+    )  # fmt: skip
+    wires, sup, out, _ = _second_look(
+        both[:1],
+        [_support(0, 1.0, 0.9)],
+        [(w, _support(w.wire_id, 0.0)) for w in both[1:]],
+        verified,
+        small_scene,
+        corridor,
+        ReconstructionOptions(),
+    )
+    assert len(wires) == 2 and [w.wire_id for w in wires] == [0, 1]
+    new = wires[1]
+    d = distance_to_polyline(out.pts_in_world[new.point_indices], conductors[1].polyline(0.05))
+    assert np.median(d) < 0.04
+    assert sup[1].traced_share is not None and sup[1].traced_share >= 0.5
+    assert new.s_range[1] - new.s_range[0] > 0.7 * conductors[1].length_m
