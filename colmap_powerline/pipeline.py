@@ -654,6 +654,7 @@ def _traced(
     corridor: WireCorridor,
     options: ReconstructionOptions,
     trace_options: TraceOptions | None = None,
+    context: list[FittedWire] | None = None,
 ) -> tuple[list[FittedWire], list[WireSupport], VerifiedPoints, list[Path]]:
     """The wires traced in every view (:func:`trace_wires`): refitted, their traced points
     added to the measured ones, their ``traced_share`` in the support."""
@@ -669,6 +670,7 @@ def _traced(
         options.verify.num_threads,
         options.verify.margin_px,
         options.detect,
+        context,
     )
     supports = [
         dataclasses.replace(s, traced_share=None if np.isnan(f) else round(float(f), 3))
@@ -713,7 +715,7 @@ def _second_look(
     look = dataclasses.replace(options.trace, max_rounds=0)
     cand = [dataclasses.replace(w, wire_id=k) for k, (w, _) in enumerate(fresh)]
     sup = [s for _, s in fresh]
-    _, looked, _, decoded = _traced(cand, sup, verified, scene, corridor, options, look)
+    _, looked, _, decoded = _traced(cand, sup, verified, scene, corridor, options, look, wires)
     # Longest first; one of two candidates for the same wire.
     order = sorted(range(len(cand)), key=lambda k: cand[k].s_range[0] - cand[k].s_range[1])
     taken: list[int] = []
@@ -737,7 +739,9 @@ def _second_look(
     n = len(wires)
     new = [dataclasses.replace(cand[k], wire_id=n + i) for i, k in enumerate(taken)]
     new_sup = [dataclasses.replace(looked[k], wire_id=n + i) for i, k in enumerate(taken)]
-    new, new_sup, verified, dec = _traced(new, new_sup, verified, scene, corridor, options)
+    new, new_sup, verified, dec = _traced(
+        new, new_sup, verified, scene, corridor, options, context=wires
+    )
     wires, supports = _without_members(wires + new, supports + new_sup, corridor, options)
     return wires, supports, verified, decoded + dec
 

@@ -118,6 +118,8 @@ class _Places:
     wire: I64  # (M,) index into the wires
     across: F64  # (M, 2, 3) the two unit directions perpendicular to the curve's tangent
     tangent: F64  # (M, 3)
+    n_traced: int  # wires numbered from this on are context: they make places near them
+    # ambiguous in a view, and are not measured
 
 
 def _frames(wire: FittedWire, s: F64) -> tuple[F64, F64, F64]:
@@ -167,7 +169,7 @@ def _observe(
     ambiguous = np.zeros(len(idx), bool)
     if len(near):
         ambiguous[near[other].ravel()] = True
-    keep = ~ambiguous
+    keep = ~ambiguous & (places.wire[idx] < places.n_traced)
     idx, uv, jac, normal = idx[keep], uv[keep], jac[keep], normal[keep]
     if len(idx) == 0:
         return None
@@ -393,7 +395,19 @@ def _measurable(sol: _Solution, sigma_px: float, max_sigma: float) -> npt.NDArra
     return seen_ok & (sigma_seen <= max_sigma)
 
 
-def _places(wires: list[FittedWire], ranges: list[list[tuple[float, float]]], step: F64):
+def _places(
+    wires: list[FittedWire],
+    ranges: list[list[tuple[float, float]]],
+    step: F64,
+    context: list[FittedWire],
+) -> _Places | None:
+    """Places every ``step[k]`` over the ``ranges`` of each wire, then over the whole of
+    each context wire (None: no place on the wires)."""
+    if not any(hi > lo for rs in ranges for lo, hi in rs):
+        return None
+    wires = wires + context
+    ranges = ranges + [[c.s_range] for c in context]
+    step = np.r_[step, np.full(len(context), np.min(step) if len(step) else 0.1)]
     pts, wire, across, tangent = [], [], [], []
     for k, (w, rs) in enumerate(zip(wires, ranges, strict=True)):
         for lo, hi in rs:
@@ -409,7 +423,11 @@ def _places(wires: list[FittedWire], ranges: list[list[tuple[float, float]]], st
     if not pts:
         return None
     return _Places(
-        np.concatenate(pts), np.concatenate(wire), np.concatenate(across), np.concatenate(tangent)
+        np.concatenate(pts),
+        np.concatenate(wire),
+        np.concatenate(across),
+        np.concatenate(tangent),
+        len(wires) - len(context),
     )
 
 
@@ -425,6 +443,7 @@ def trace_wires(
     num_threads: int = 2,
     margin_px: int = 24,
     detect: DetectOptions | None = None,
+    context: list[FittedWire] | None = None,
 ) -> tuple[list[FittedWire], TracedPoints]:
     """Measure each confirmed wire in every view that sees it (module docstring).
 
@@ -435,6 +454,8 @@ def trace_wires(
         wire_mask: the verification's detector.
         azimuth_deg: the wires' horizontal direction.
         tolerance_px: a view disagreeing with the others by more than this is dropped.
+        context: other wires: a place where one of them passes near in a view is not
+            measured there (they are not traced).
 
     Returns:
         The wires refitted to their measured and traced points (indices past
@@ -451,6 +472,7 @@ def trace_wires(
     if not options.enabled or not wires:
         return wires, empty
     detect = detect or DetectOptions()
+    context = context or []
     t0 = time.perf_counter()
     centres = scene.centers_in_world
     # Place spacing: step_px pixels of the nearest camera at each wire.
@@ -473,13 +495,29 @@ def trace_wires(
     # A traced point lies within the wires' inlier distance of its true place with 98 %
     # probability (2.33 standard deviations, one-sided in its worst direction).
     max_sigma = wires_options.inlier_distance / 2.33
+    # Points found past a wire's ends belong to it when the refitted curve stays where it was
+    # measured (within a quarter of the inlier distance).
+    max_shift = wires_options.inlier_distance / 4
     sigma_px: float | None = None
     share = np.full(len(wires), np.nan)
     bias: dict[tuple[int, int], float] = {}
     az = np.deg2rad(azimuth_deg)
     along = np.array([np.sin(az), np.cos(az)])
+    # How far along the line the measured wires reach.
+    ends_along = np.concatenate(
+        [w.points(np.array(w.s_range))[:, :2] @ along for w in wires + context]
+    )
+    reach = (float(ends_along.min()), float(ends_along.max()))
+
+    def _along_limits(w: FittedWire, limits: tuple[float, float]) -> tuple[float, float]:
+        """The wire's ``s`` where it reaches the limits along the line."""
+        rate = float(w.plane_direction_xy @ along)
+        offset = float(w.plane_origin_xy @ along)
+        a, b = (limits[0] - offset) / rate, (limits[1] - offset) / rate
+        return (min(a, b), max(a, b))
+
     for round_ in range(options.max_rounds + 1):
-        places = _places(wires, ranges, step)
+        places = _places(wires, ranges, step, context)
         if places is None:
             break
         obs, dec = _look(
@@ -501,7 +539,9 @@ def trace_wires(
             if options.loose:
                 # On the wires the views find, within the stretch confirmed, a peak that
                 # stands out will do.
-                found = np.isnan(share) | (share >= MIN_TRACED_SHARE)
+                found = np.r_[
+                    np.isnan(share) | (share >= MIN_TRACED_SHARE), np.zeros(len(context), bool)
+                ]
                 sol = _measure(obs, places, tolerance_px, bias, found[places.wire])
                 good, sigma = _kept(sol, sigma_px, max_sigma)
         x, n_views = sol.x, sol.n_views
@@ -520,13 +560,21 @@ def trace_wires(
             out_sigma.append(sigma[mine])
             idx = np.r_[w.point_indices, base + np.arange(len(mine))]
             fit = refit(w, all_pts, idx, along, wires_options)
+            if round_ > 0 and np.max(fit.distance(w.polyline(1.0))) > max_shift:
+                # What the views found past the end bends the curve where it was measured:
+                # not this catenary (past a support, the next span's wire or the support).
+                new_ranges.append([])
+                continue
             lo, hi = fit.s_range
-            # An end goes on while the views found the wire over most of the last extension.
+            # An end goes on while the views found the wire over most of the last extension,
+            # up to where the measured wires reach along the line (their supports: past
+            # them, the insulators, arms and the next span's wires).
+            first, last = _along_limits(fit, reach)
             ends = []
             if round_ == 0 or lo < w.s_range[0] - options.extend / 2:
-                ends.append((lo - options.extend, lo))
+                ends.append((max(lo - options.extend, first), lo))
             if round_ == 0 or hi > w.s_range[1] + options.extend / 2:
-                ends.append((hi, hi + options.extend))
+                ends.append((hi, min(hi + options.extend, last)))
             new_ranges.append(ends)
             new_wires[k] = fit
         logger.info(
