@@ -49,7 +49,7 @@ from .support import (
     support_members,
     wire_support,
 )
-from .trace import MIN_TRACED_SHARE, TraceOptions, trace_wires
+from .trace import MIN_REDUNDANCY, MIN_TRACED_SHARE, TraceOptions, trace_wires
 from .triangulate import Primitives, TriangulateOptions, triangulate_pair, wire_centres
 from .verify import VerifiedPoints, VerifyOptions, WireMaskFn, verify_primitives
 from .wires import (
@@ -655,6 +655,7 @@ def _traced(
     options: ReconstructionOptions,
     trace_options: TraceOptions | None = None,
     context: list[FittedWire] | None = None,
+    min_redundancy: float = 0.0,
 ) -> tuple[list[FittedWire], list[WireSupport], VerifiedPoints, list[Path]]:
     """The wires traced in every view (:func:`trace_wires`): refitted, their traced points
     added to the measured ones, their ``traced_share`` in the support."""
@@ -671,6 +672,7 @@ def _traced(
         options.verify.margin_px,
         options.detect,
         context,
+        min_redundancy,
     )
     supports = [
         dataclasses.replace(s, traced_share=None if np.isnan(f) else round(float(f), 3))
@@ -715,7 +717,9 @@ def _second_look(
     look = dataclasses.replace(options.trace, max_rounds=0)
     cand = [dataclasses.replace(w, wire_id=k) for k, (w, _) in enumerate(fresh)]
     sup = [s for _, s in fresh]
-    _, looked, _, decoded = _traced(cand, sup, verified, scene, corridor, options, look, wires)
+    _, looked, _, decoded = _traced(
+        cand, sup, verified, scene, corridor, options, look, wires, MIN_REDUNDANCY
+    )
     # Longest first; one of two candidates for the same wire.
     order = sorted(range(len(cand)), key=lambda k: cand[k].s_range[0] - cand[k].s_range[1])
     taken: list[int] = []
@@ -740,7 +744,14 @@ def _second_look(
     new = [dataclasses.replace(cand[k], wire_id=n + i) for i, k in enumerate(taken)]
     new_sup = [dataclasses.replace(looked[k], wire_id=n + i) for i, k in enumerate(taken)]
     new, new_sup, verified, dec = _traced(
-        new, new_sup, verified, scene, corridor, options, context=wires
+        new,
+        new_sup,
+        verified,
+        scene,
+        corridor,
+        options,
+        context=wires,
+        min_redundancy=MIN_REDUNDANCY,
     )
     wires, supports = _without_members(wires + new, supports + new_sup, corridor, options)
     return wires, supports, verified, decoded + dec

@@ -60,6 +60,13 @@ I64 = npt.NDArray[np.int64]
 # found a tower member or a road line instead of the wire is dropped only when others agree).
 MIN_VIEWS = 3
 
+# A wire not confirmed by the support check is traced with every view checked by the others:
+# its redundancy number (1 − its leverage) at least this (a view with less is all but alone
+# in fixing some direction of the point: two views of one strip along the wire and one of
+# another, with which a false pairing of two strips passes). On wires already confirmed
+# that would cost a third of some wires' points on the shared area survey, and is not asked.
+MIN_REDUNDANCY = 0.2
+
 # A view's offset on a wire is estimated from at least this many places the others check.
 MIN_BIAS_PLACES = 20
 
@@ -206,9 +213,10 @@ def _observe(
 
 def _solve(
     rows: F64, offsets: F64, across: F64, tolerance_px: float
-) -> tuple[F64, npt.NDArray[np.bool_], F64] | None:
+) -> tuple[F64, npt.NDArray[np.bool_], F64, float] | None:
     """The offset (2,) of one place across its curve from its views' equations, the views
-    kept, and the (2, 2) normal matrix; None when fewer than two views agree."""
+    kept, the (2, 2) normal matrix and the smallest redundancy number of the views kept
+    (1 − leverage: 0 for a view no other checks); None when fewer than two views agree."""
     a = rows @ across.T  # (n, 2)
     keep = np.ones(len(a), bool)
     while keep.sum() >= 2:
@@ -220,7 +228,8 @@ def _solve(
         res = offsets - a @ x
         worst = np.argmax(np.where(keep, np.abs(res), -1.0))
         if abs(res[worst]) <= tolerance_px:
-            return x, keep, normal
+            leverage = np.einsum("ni,ij,nj->n", ak, np.linalg.inv(normal), ak)
+            return x, keep, normal, float(1.0 - leverage.max())
         keep[worst] = False
     return None
 
@@ -231,6 +240,7 @@ class _Solution:
     rss: F64  # (M,) residual sum of squares (px²)
     n_views: npt.NDArray[np.int32]  # (M,) views kept
     normal: F64  # (M, 2, 2) normal matrices (px² per model unit²)
+    redundancy: F64  # (M,) smallest redundancy number of the views kept
     seen: npt.NDArray[np.int32]  # (M,) views that see the place, no other wire near
     normal_seen: F64  # (M, 2, 2) the normal matrix had they all found the wire
 
@@ -246,6 +256,7 @@ def _solve_places(
     normal = np.zeros((m, 2, 2))
     res = np.full(len(place), np.nan)
     kept = np.zeros(len(place), bool)
+    redundancy = np.zeros(m)
     a_all = np.einsum("nj,nkj->nk", rows, across[place])  # (n, 2)
     normal_seen = np.zeros((m, 2, 2))
     np.add.at(normal_seen, place, a_all[:, :, None] * a_all[:, None, :])
@@ -260,11 +271,11 @@ def _solve_places(
         sol = _solve(rows[obs], offsets[obs], across[i], tolerance_px)
         if sol is None:
             continue
-        x[i], keep, normal[i] = sol
+        x[i], keep, normal[i], redundancy[i] = sol
         r = offsets[obs] - a_all[obs] @ x[i]
         res[obs], kept[obs] = r, keep
         rss[i], n_views[i] = float((r[keep] ** 2).sum()), int(keep.sum())
-    return _Solution(x, rss, n_views, normal, seen, normal_seen), res, kept
+    return _Solution(x, rss, n_views, normal, redundancy, seen, normal_seen), res, kept
 
 
 @dataclass(frozen=True, eq=False)
@@ -372,7 +383,9 @@ def _image_noise(sol: _Solution, tolerance_px: float) -> float:
     return sigma_px
 
 
-def _kept(sol: _Solution, sigma_px: float, max_sigma: float) -> tuple[npt.NDArray[np.bool_], F64]:
+def _kept(
+    sol: _Solution, sigma_px: float, max_sigma: float, min_redundancy: float
+) -> tuple[npt.NDArray[np.bool_], F64]:
     """The places measured well enough, and each place's predicted precision (its largest
     standard deviation; inf: not solved)."""
     solved = np.isfinite(sol.x[:, 0])
@@ -382,7 +395,8 @@ def _kept(sol: _Solution, sigma_px: float, max_sigma: float) -> tuple[npt.NDArra
         cov = np.linalg.inv(sol.normal[ok]) * sigma_px**2
         sigma[ok] = np.sqrt(np.linalg.eigvalsh(cov)[:, -1])
     # Two views fix a point with no check on it; a third makes the outlier test work.
-    return solved & (sigma <= max_sigma) & (sol.n_views >= MIN_VIEWS), sigma
+    checked = sol.redundancy >= min_redundancy
+    return solved & (sigma <= max_sigma) & (sol.n_views >= MIN_VIEWS) & checked, sigma
 
 
 def _measurable(sol: _Solution, sigma_px: float, max_sigma: float) -> npt.NDArray[np.bool_]:
@@ -444,6 +458,7 @@ def trace_wires(
     margin_px: int = 24,
     detect: DetectOptions | None = None,
     context: list[FittedWire] | None = None,
+    min_redundancy: float = 0.0,
 ) -> tuple[list[FittedWire], TracedPoints]:
     """Measure each confirmed wire in every view that sees it (module docstring).
 
@@ -456,6 +471,8 @@ def trace_wires(
         tolerance_px: a view disagreeing with the others by more than this is dropped.
         context: other wires: a place where one of them passes near in a view is not
             measured there (they are not traced).
+        min_redundancy: each view kept at a place has at least this redundancy number
+            (``MIN_REDUNDANCY`` for wires the support check did not confirm).
 
     Returns:
         The wires refitted to their measured and traced points (indices past
@@ -527,7 +544,7 @@ def trace_wires(
         sol = _measure(obs, places, tolerance_px, bias)
         if sigma_px is None:
             sigma_px = _image_noise(sol, tolerance_px)
-        good, sigma = _kept(sol, sigma_px, max_sigma)
+        good, sigma = _kept(sol, sigma_px, max_sigma, min_redundancy)
         if round_ == 0:
             # Where the views would fix the wire (enough of them, crossing enough), had they
             # all found it: the share of those places where they did (strict detection).
@@ -543,7 +560,7 @@ def trace_wires(
                     np.isnan(share) | (share >= MIN_TRACED_SHARE), np.zeros(len(context), bool)
                 ]
                 sol = _measure(obs, places, tolerance_px, bias, found[places.wire])
-                good, sigma = _kept(sol, sigma_px, max_sigma)
+                good, sigma = _kept(sol, sigma_px, max_sigma, min_redundancy)
         x, n_views = sol.x, sol.n_views
         pts = places.pts + np.einsum("mi,mij->mj", np.where(good[:, None], x, 0.0), places.across)
         new_wires = list(wires)
