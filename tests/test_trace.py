@@ -57,7 +57,8 @@ def conductors(small_span):
 
 def test_traced_points_measure_the_wire_and_reach_past_the_curve(small_scene, conductors):
     """Curves over the middle 40 % of each conductor, 5 cm too high: the traced points lie
-    on the true wires (not on the curves), and the wires grow over most of the span."""
+    on the true wires (not on the curves), and the wires grow over most of the span (as far
+    as another wire, measured from support to support, reaches along the line)."""
     truth = conductors[:3]
     wires, pts = _with_points([_curve(t, k, 0.3, 0.7, 0.05) for k, t in enumerate(truth)])
     out, traced = trace_wires(
@@ -69,6 +70,7 @@ def test_traced_points_measure_the_wire_and_reach_past_the_curve(small_scene, co
         TraceOptions(),
         WiresOptions(),
         tolerance_px=1.5,
+        context=[_curve(conductors[3], 3, 0.0, 1.0, 0.0)],
     )
     assert [w.wire_id for w in out] == [0, 1, 2]
     for k, t in enumerate(truth):
@@ -83,6 +85,11 @@ def test_traced_points_measure_the_wire_and_reach_past_the_curve(small_scene, co
         assert np.mean(d < WiresOptions().inlier_distance) > 0.95
         lo, hi = out[k].s_range
         assert hi - lo > 0.7 * t.length_m  # grew from 40 % of the span
+        # ... and no farther along the line than the wire measured to the supports.
+        along = out[k].points(np.array([lo, hi]))[:, :2] @ out[k].plane_direction_xy
+        ref = conductors[3].points(np.array([0.0, conductors[3].length_m]))[:, :2]
+        ref_along = ref @ out[k].plane_direction_xy
+        assert along.min() > ref_along.min() - 0.5 and along.max() < ref_along.max() + 0.5
         assert np.all(traced.sigma[traced.wire_id == k] <= WiresOptions().inlier_distance / 2.33)
     # The traced points are the wires' points past the measured ones.
     assert all(out[k].point_indices.max() >= len(pts) for k in range(3))
