@@ -442,12 +442,14 @@ def reconstruct(
         )
         candidates = [trimmed[k] or w if k in trimmed else w for k, w in enumerate(candidates)]
         supports = judge(candidates)
-    # Wires the views' hit rates reject, above the ground: tracing gives them a second look.
+    # Long wires the views' hit rates reject, above the ground: tracing gives them a second
+    # look (a shorter piece may be a support's member, straight and really there).
     rejected = [
         (w, s)
         for w, s in zip(candidates, supports, strict=True)
         if not options.support.accepts(s.confidence)
         and s.height_above_ground >= options.triangulate.min_wire_height
+        and w.s_range[1] - w.s_range[0] >= options.wires.max_gap
     ]
     kept, supports = keep_supported(
         candidates, supports, options.support, options.triangulate.min_wire_height

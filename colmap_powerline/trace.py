@@ -512,9 +512,6 @@ def trace_wires(
     # A traced point lies within the wires' inlier distance of its true place with 98 %
     # probability (2.33 standard deviations, one-sided in its worst direction).
     max_sigma = wires_options.inlier_distance / 2.33
-    # Points found past a wire's ends belong to it when the refitted curve stays where it was
-    # measured (within a quarter of the inlier distance).
-    max_shift = wires_options.inlier_distance / 4
     sigma_px: float | None = None
     share = np.full(len(wires), np.nan)
     bias: dict[tuple[int, int], float] = {}
@@ -577,11 +574,6 @@ def trace_wires(
             out_sigma.append(sigma[mine])
             idx = np.r_[w.point_indices, base + np.arange(len(mine))]
             fit = refit(w, all_pts, idx, along, wires_options)
-            if round_ > 0 and np.max(fit.distance(w.polyline(1.0))) > max_shift:
-                # What the views found past the end bends the curve where it was measured:
-                # not this catenary (past a support, the next span's wire or the support).
-                new_ranges.append([])
-                continue
             lo, hi = fit.s_range
             # An end goes on while the views found the wire over most of the last extension,
             # up to where the measured wires reach along the line (their supports: past
