@@ -20,8 +20,14 @@ redundant points themselves — is within ``WiresOptions.inlier_distance / 4``. 
 the wires from one strip give nearly the same plane and cannot fix a point: only their
 combination with views offset across the wire does.
 
-The wires are then refitted to their measured and traced points, and traced again past their
-new ends, ``extend`` at a time, while the views keep finding them there.
+Each view's offset on each wire (its pose error, how the wire looks there) is estimated from
+the places the other views check and removed. Within the stretch already confirmed, a
+response peak above the detector's contrast threshold counts as the wire centre (the curve
+is the evidence the detector's length filter gives elsewhere); past the ends, only the
+detector's wire pixels do. The wires are refitted to their measured and traced points, and
+traced again past their new ends, ``extend`` at a time, while the views keep finding them
+there, no farther along the line than the measured wires reach (past their supports hang
+insulators, arms and the next span's wires).
 """
 
 from __future__ import annotations
