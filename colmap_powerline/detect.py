@@ -118,6 +118,16 @@ def line_response(gray: F32, direction_deg: float, options: DetectOptions | None
     return cv2.filter2D(gray, cv2.CV_32F, kernel, borderType=cv2.BORDER_REPLICATE)
 
 
+def contrast_threshold(magnitude: F32, options: DetectOptions) -> F32:
+    """(H, W) the response a wire pixel must exceed: ``threshold_k`` times the local mean
+    |response| (a ``contrast_window_px`` window), and at least ``min_response``."""
+    win = options.contrast_window_px
+    local = cv2.blur(magnitude, (win, win), borderType=cv2.BORDER_REFLECT)
+    local *= options.threshold_k
+    np.maximum(local, options.min_response, out=local)
+    return local
+
+
 def detect_wires(
     image: np.ndarray, direction_deg: float, options: DetectOptions | None = None
 ) -> WireMask:
@@ -149,11 +159,7 @@ def detect_wires(
         strength = np.maximum(-response, 0)
     else:
         strength = magnitude
-    win = options.contrast_window_px
-    local = cv2.blur(magnitude, (win, win), borderType=cv2.BORDER_REFLECT)
-    local *= options.threshold_k
-    np.maximum(local, options.min_response, out=local)
-    candidate = strength > local
+    candidate = strength > contrast_threshold(magnitude, options)
     # The −1 taps make a wire respond with the opposite sign beside it: drop those side
     # lobes (a stronger response of the other sign one tap away across the wire).
     # Judged on a slightly smoothed response, so that a wire straddling two pixels (whose

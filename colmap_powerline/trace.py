@@ -45,7 +45,7 @@ import numpy.typing as npt
 from scipy.spatial import cKDTree
 from scipy.stats import chi2
 
-from .detect import DetectOptions
+from .detect import DetectOptions, contrast_threshold
 from .scene import Scene, SceneImage, read_image
 from .verify import (
     WireMaskFn,
@@ -155,9 +155,7 @@ def _observe(
     azimuth_deg: float,
     reach_px: float,
     margin_px: int,
-    threshold_k: float = 2.0,
-    contrast_window_px: int = 41,
-    min_response: float = 1.5,
+    detect: DetectOptions,
 ) -> tuple[I64, F64, F64, F64] | None:
     """One view's observations of the places it sees (no other wire near): (place,
     Jacobian row across the wire in the image (px per model unit), offset to the wire
@@ -206,10 +204,7 @@ def _observe(
     # Loose: a peak above the detector's contrast threshold, without its length filter (on a
     # wire the views already find, the curve is the evidence the length gave).
     magnitude = np.abs(wm.response)
-    local = cv2.blur(
-        magnitude, (contrast_window_px, contrast_window_px), borderType=cv2.BORDER_REFLECT
-    )
-    strong = magnitude > np.maximum(local * threshold_k, min_response)
+    strong = magnitude > contrast_threshold(magnitude, detect)
     strong = cv2.dilate(strong.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
     loose = found.copy()
     loose[np.flatnonzero(found)[~strong[cy, cx]]] = False
@@ -315,9 +310,7 @@ def _look(
             azimuth_deg,
             reach_px,
             margin_px,
-            detect.threshold_k,
-            detect.contrast_window_px,
-            detect.min_response,
+            detect,
         )
 
     with ThreadPoolExecutor(max_workers=num_threads) as pool:

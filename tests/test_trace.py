@@ -46,6 +46,21 @@ def _with_points(wires: list[FittedWire]) -> tuple[list[FittedWire], np.ndarray]
     return out, np.concatenate(pts)
 
 
+def _trace(scene, wires, pts, **kwargs):
+    """trace_wires with the verification's detector and the default options."""
+    return trace_wires(
+        scene,
+        wires,
+        pts,
+        crop_wire_mask(DetectOptions(), 25),
+        _azimuth(wires[0]),
+        TraceOptions(),
+        WiresOptions(),
+        tolerance_px=1.5,
+        **kwargs,
+    )
+
+
 def _azimuth(w: FittedWire) -> float:
     return float(np.degrees(np.arctan2(w.plane_direction_xy[0], w.plane_direction_xy[1])))
 
@@ -61,17 +76,7 @@ def test_traced_points_measure_the_wire_and_reach_past_the_curve(small_scene, co
     as another wire, measured from support to support, reaches along the line)."""
     truth = conductors[:3]
     wires, pts = _with_points([_curve(t, k, 0.3, 0.7, 0.05) for k, t in enumerate(truth)])
-    out, traced = trace_wires(
-        small_scene,
-        wires,
-        pts,
-        crop_wire_mask(DetectOptions(), 25),
-        _azimuth(wires[0]),
-        TraceOptions(),
-        WiresOptions(),
-        tolerance_px=1.5,
-        context=[_curve(conductors[3], 3, 0.0, 1.0, 0.0)],
-    )
+    out, traced = _trace(small_scene, wires, pts, context=[_curve(conductors[3], 3, 0.0, 1.0, 0.0)])
     assert [w.wire_id for w in out] == [0, 1, 2]
     for k, t in enumerate(truth):
         mine = traced.pts_in_world[traced.wire_id == k]
@@ -98,16 +103,7 @@ def test_traced_points_measure_the_wire_and_reach_past_the_curve(small_scene, co
 def test_no_wire_under_the_curve_no_points(small_scene, conductors):
     """A curve 6 m below a conductor, where no wire hangs: the views find nothing on it."""
     wires, pts = _with_points([_curve(conductors[0], 0, 0.2, 0.8, -6.0)])
-    out, traced = trace_wires(
-        small_scene,
-        wires,
-        pts,
-        crop_wire_mask(DetectOptions(), 25),
-        _azimuth(wires[0]),
-        TraceOptions(),
-        WiresOptions(),
-        tolerance_px=1.5,
-    )
+    out, traced = _trace(small_scene, wires, pts)
     assert len(traced) < 0.02 * len(pts)
     assert out[0].s_range[1] - out[0].s_range[0] < 0.65 * conductors[0].length_m
 
