@@ -66,9 +66,7 @@ def main(argv: list[str] | None = None) -> int:
                 h.SEARCH = search
                 _, hit, _, _ = h.ridge_test(gray, run, nrm, None, 61, 2.5, 1.5)
                 h.SEARCH = WIDE_SEARCH_PX
-                _, near, _, _ = h.ridge_test(
-                    gray, run, nrm, None, 61, WIDE_MIN_SNR, WIDE_SEARCH_PX
-                )
+                _, near, _, _ = h.ridge_test(gray, run, nrm, None, 61, WIDE_MIN_SNR, WIDE_SEARCH_PX)
                 counts += [hit.sum(), (~hit & near).sum(), (~hit & ~near).sum()]
             h.SEARCH = search
             if counts.sum():
