@@ -675,6 +675,7 @@ def _traced(
         options.detect,
         context,
         min_redundancy,
+        options.verify.template_length_px,
     )
     supports = [
         dataclasses.replace(s, traced_share=None if np.isnan(f) else round(float(f), 3))

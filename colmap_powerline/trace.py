@@ -21,13 +21,16 @@ the wires from one strip give nearly the same plane and cannot fix a point: only
 combination with views offset across the wire does.
 
 Each view's offset on each wire (its pose error, how the wire looks there) is estimated from
-the places the other views check and removed. Within the stretch already confirmed, a
-response peak above the detector's contrast threshold counts as the wire centre (the curve
-is the evidence the detector's length filter gives elsewhere); past the ends, only the
+the places the other views check and removed. On a wire the views find (its traced share),
+a response peak above the detector's contrast threshold counts as the wire centre (the curve
+is the evidence the detector's length filter gives elsewhere); on the others only the
 detector's wire pixels do. The wires are refitted to their measured and traced points, and
 traced again past their new ends, ``extend`` at a time, while the views keep finding them
-there, no farther along the line than the measured wires reach (past their supports hang
-insulators, arms and the next span's wires).
+there, no farther along the line than the measured wires reach. A round's points past an end
+that leave the curve continued by more than ``MAX_BEND`` standard errors (the fit's own,
+from its residuals, and the points') are dropped and that end stops: past a support the next
+span's wire bends away or the line turns, and clutter a peak test took does not follow a
+catenary.
 """
 
 from __future__ import annotations
@@ -54,7 +57,7 @@ from .verify import (
     _wire_offsets,
     image_wire_direction_deg,
 )
-from .wires import FittedWire, WiresOptions, refit
+from .wires import FittedWire, WiresOptions, _catenary, refit
 
 logger = logging.getLogger(__name__)
 
@@ -80,6 +83,13 @@ MIN_BIAS_PLACES = 20
 # places is dropped (strict detection). On the shared generator's flight across and area
 # survey the true wires are found at 59-100 % of those places, the false pairings at none.
 MIN_TRACED_SHARE = 0.2
+
+# A round's points past an end that leave the wire's curve, continued, by more than this many
+# standard errors (its fit's and theirs) are not the wire's: a support, with the next span's
+# wire bending away, or clutter the looser test took. They are dropped and that end stops.
+# On the shared generator's single spans the true extensions stay within 3.8; on the real
+# road flight (poles every ~65 m) the rounds past a pole reach 5-13.
+MAX_BEND = 4.0
 
 # A wire's traced share is judged on at least this many places where the views would fix it
 # (a metre of wire at the half-scale GSD).
@@ -444,6 +454,52 @@ def _places(
     )
 
 
+def _prediction_sigma(wire: FittedWire, pts: F64, s: F64, corr: float) -> tuple[F64, F64]:
+    """(len(s),) standard errors of the wire's curve at ``s`` (continued past its ends),
+    across and in height, from its fit to ``pts``: linearised least squares, with the
+    residuals of ``corr`` neighbouring points counted as one (they share image evidence)."""
+    sp, acr, dz = wire.plane_coords(pts)
+    n = len(sp)
+    # Across: the plane, a line c = c0 + slope s.
+    x = np.c_[np.ones(n), sp]
+    cov_a = np.linalg.pinv(x.T @ x) * float(np.var(acr) * n / max(n - 2, 1)) * corr
+    g = np.c_[np.ones(len(s)), s]
+    sig_a = np.sqrt(np.abs(np.einsum("ni,ij,nj->n", g, cov_a, g)))
+    # Height: the catenary's (k, s0, z0), by central differences.
+    theta = np.array([1.0 / wire.catenary_a, wire.s0, wire.z0])
+    steps = np.array([max(theta[0] * 1e-3, 1e-9), 1e-3, 1e-3])
+
+    def jac(t: F64) -> F64:
+        cols = []
+        for i in range(3):
+            d = np.zeros(3)
+            d[i] = steps[i]
+            cols.append((_catenary(t, *(theta + d)) - _catenary(t, *(theta - d))) / (2 * steps[i]))
+        return np.stack(cols, axis=1)
+
+    j = jac(sp)
+    cov_z = np.linalg.pinv(j.T @ j) * float(np.var(dz) * n / max(n - 3, 1)) * corr
+    gz = jac(np.asarray(s, np.float64))
+    sig_z = np.sqrt(np.abs(np.einsum("ni,ij,nj->n", gz, cov_z, gz)))
+    return sig_a, sig_z
+
+
+def _leaves_curve(wire: FittedWire, pts: F64, new: F64, new_sigma: F64, corr: float) -> float:
+    """How far the points ``new`` past one end of the wire lie from its curve, continued, in
+    standard errors: the larger of the statistics across the wire and in height, on the
+    farther half of them (median offset over the curve's error there and theirs, with
+    ``corr`` neighbouring points counted as one). ``pts``: the points the wire was fitted to;
+    ``new_sigma``: the new points' predicted precision."""
+    s, acr, dz = wire.plane_coords(new)
+    d_end = np.minimum(np.abs(s - wire.s_range[0]), np.abs(s - wire.s_range[1]))
+    far = d_end >= np.median(d_end)
+    sig_a, sig_z = _prediction_sigma(wire, pts, s[far], corr)
+    noise = float(np.median(new_sigma[far])) / np.sqrt(max(far.sum() / corr, 1.0))
+    t_across = abs(float(np.median(acr[far]))) / np.hypot(float(np.median(sig_a)), noise)
+    t_height = abs(float(np.median(dz[far]))) / np.hypot(float(np.median(sig_z)), noise)
+    return max(t_across, t_height)
+
+
 def trace_wires(
     scene: Scene,
     wires: list[FittedWire],
@@ -458,6 +514,7 @@ def trace_wires(
     detect: DetectOptions | None = None,
     context: list[FittedWire] | None = None,
     min_redundancy: float = 0.0,
+    template_length_px: int = 25,
 ) -> tuple[list[FittedWire], TracedPoints]:
     """Measure each confirmed wire in every view that sees it (module docstring).
 
@@ -472,6 +529,8 @@ def trace_wires(
             measured there (they are not traced).
         min_redundancy: each view kept at a place has at least this redundancy number
             (``MIN_REDUNDANCY`` for wires the support check did not confirm).
+        template_length_px: the length of ``wire_mask``'s line template: places closer
+            than that along a wire share their image evidence.
 
     Returns:
         The wires refitted to their measured and traced points (indices past
@@ -512,6 +571,9 @@ def trace_wires(
     # probability (2.33 standard deviations, one-sided in its worst direction).
     max_sigma = wires_options.inlier_distance / 2.33
     sigma_px: float | None = None
+    found: npt.NDArray[np.bool_] | None = None  # the wires the views find (loose peaks count)
+    # Neighbouring places share image evidence over the line template's length.
+    corr = max(template_length_px / options.step_px, 1.0)
     share = np.full(len(wires), np.nan)
     bias: dict[tuple[int, int], float] = {}
     az = np.deg2rad(azimuth_deg)
@@ -537,7 +599,11 @@ def trace_wires(
             scene, places, wire_mask, azimuth_deg, options.reach_px, num_threads, margin_px, detect
         )
         decoded += dec
-        sol = _measure(obs, places, tolerance_px, bias)
+        # Past the ends, on the wires the views find, a peak that stands out will do too
+        # (what it takes that is not the wire, the bend test below drops).
+        sol = _measure(
+            obs, places, tolerance_px, bias, found[places.wire] if found is not None else None
+        )
         if sigma_px is None:
             sigma_px = _image_noise(sol, tolerance_px)
         good, sigma = _kept(sol, sigma_px, max_sigma, min_redundancy)
@@ -572,6 +638,17 @@ def trace_wires(
             out_views.append(n_views[mine])
             out_sigma.append(sigma[mine])
             idx = np.r_[w.point_indices, base + np.arange(len(mine))]
+            if round_ > 0:
+                # Points past an end that leave the curve continued are not the wire's.
+                s_new = w.plane_coords(pts[mine])[0]
+                own = all_pts[w.point_indices]
+                drop = np.zeros(len(mine), bool)
+                for side in (s_new < w.s_range[0], s_new > w.s_range[1]):
+                    if side.sum() >= corr and (
+                        _leaves_curve(w, own, pts[mine][side], sigma[mine][side], corr) > MAX_BEND
+                    ):
+                        drop |= side
+                idx = np.r_[w.point_indices, base + np.flatnonzero(~drop)]
             fit = refit(w, all_pts, idx, along, wires_options)
             lo, hi = fit.s_range
             # An end goes on while the views found the wire over most of the last extension,

@@ -177,3 +177,37 @@ def test_a_rejected_wire_the_views_find_gets_a_second_look(small_scene, conducto
     assert np.median(d) < 0.04
     assert sup[1].traced_share is not None and sup[1].traced_share >= 0.5
     assert new.s_range[1] - new.s_range[0] > 0.7 * conductors[1].length_m
+
+
+def _catenary_points(s: np.ndarray, s0: float, z_at_zero: float, rng, a: float = 300.0):
+    """Points of a catenary hanging along x (lowest at ``s0``), 2 cm noise in each axis."""
+    z = z_at_zero + a * (np.cosh((s - s0) / a) - 1)
+    pts = np.c_[s, np.zeros_like(s), z]
+    return pts + rng.normal(0, 0.02, pts.shape)
+
+
+def test_points_past_a_support_leave_the_curve_continued():
+    """A wire fitted to 40 m of its span: more of the same span, past the end, stays on the
+    curve continued; the next span's wire, hanging from a support at the end (or turning
+    10° there), leaves it by more than MAX_BEND standard errors."""
+    from colmap_powerline.trace import MAX_BEND, _leaves_curve
+    from colmap_powerline.wires import _fit
+
+    rng = np.random.default_rng(3)
+    s_fit = np.arange(0.0, 40.0, 0.025)  # a traced place every 2.5 cm
+    pts = _catenary_points(s_fit, 30.0, 0.0, rng)
+    wire = _fit(pts, np.arange(len(pts)), np.array([1.0, 0.0]), WiresOptions())
+    assert wire is not None
+    s_new = np.arange(40.0, 45.0, 0.025)
+    sigma = np.full(len(s_new), 0.02)
+    same = _catenary_points(s_new, 30.0, 0.0, rng)
+    assert _leaves_curve(wire, pts, same, sigma, 10.0) < MAX_BEND
+    # The next span: lowest 30 m past the support at s = 40, hanging from the same point.
+    nxt = _catenary_points(s_new, 70.0, 0.0, rng)
+    z40 = 300 * (np.cosh(10 / 300) - 1)
+    nxt[:, 2] += z40 - 300 * (np.cosh(-30 / 300) - 1)
+    assert _leaves_curve(wire, pts, nxt, sigma, 10.0) > MAX_BEND
+    # The same span's height, but the line turns by 10° at the support.
+    turned = same.copy()
+    turned[:, 1] = (s_new - 40.0) * np.tan(np.radians(10.0)) + rng.normal(0, 0.02, len(s_new))
+    assert _leaves_curve(wire, pts, turned, sigma, 10.0) > MAX_BEND

@@ -1,0 +1,134 @@
+#!/usr/bin/env python
+"""Completeness where the flight can measure a wire: the shared generator's truth, split by
+what the views can fix.
+
+    python scripts/measurable.py SCENE OUT/wire_points.ply [--sigma_px 0.44] [--json R.json]
+
+SCENE is a scene of the shared generator (``gt/wires.json``, ``sparse_gt``, ``images``).
+Every 0.1 m along each true wire, the views that see the point (inside the image by 20 px)
+each give one equation across the wire's image direction in the two unknown offsets of the
+point across its tangent (as tracing measures it: ``colmap_powerline.trace``). The point is
+*measurable* when at least three views see it and the largest standard deviation they
+predict, at ``--sigma_px`` of image noise per wire centre, is within the 98 % bound tracing
+keeps (``WiresOptions.inlier_distance / 2.33``). Reported per true wire: the measurable
+share of its length, the completeness (within 10 cm, as ``score.py``) over the whole wire,
+over its measurable part and over the rest. Occlusion is ignored (wires are thin).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+import open3d as o3d
+from scipy.spatial import cKDTree
+
+from colmap_powerline.scene import load_scene
+from colmap_powerline.verify import _projection_jacobian
+from colmap_powerline.wires import WiresOptions
+
+STEP = 0.1  # m between samples along a true wire
+TOLERANCE = 0.10  # m, completeness tolerance of the shared scorer
+MARGIN_PX = 20.0
+
+
+def _samples(polyline: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Points every STEP along a polyline and the unit tangents there."""
+    seg = np.diff(polyline, axis=0)
+    s = np.r_[0, np.cumsum(np.linalg.norm(seg, axis=1))]
+    t = np.arange(0, s[-1], STEP)
+    pts = np.c_[[np.interp(t, s, polyline[:, k]) for k in range(3)]].T
+    tangent = np.gradient(pts, axis=0)
+    tangent /= np.linalg.norm(tangent, axis=1, keepdims=True)
+    return pts, tangent
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("scene", type=Path)
+    ap.add_argument("points", type=Path, help="the run's wire_points.ply (or wires.ply)")
+    ap.add_argument("--sigma_px", type=float, default=0.44, help="image noise of a wire centre")
+    ap.add_argument("--json", type=Path, default=None)
+    args = ap.parse_args(argv)
+    for p in (args.scene / "gt" / "wires.json", args.scene / "sparse_gt", args.points):
+        if not p.exists():
+            print(f"{p}: not found", file=sys.stderr)
+            return 2
+    scene = load_scene(args.scene / "sparse_gt", args.scene / "images", check_images=False)
+    truth = json.loads((args.scene / "gt" / "wires.json").read_text())["wires"]
+    found = np.asarray(o3d.io.read_point_cloud(str(args.points)).points)
+    tree = cKDTree(found) if len(found) else None
+    max_sigma = WiresOptions().inlier_distance / 2.33
+    rows = []
+    print("wire        kind     len m  measurable %  compl %  in measurable %  elsewhere %")
+    for w in truth:
+        pts, tangent = _samples(np.asarray(w["polyline"], np.float64))
+        horizontal = np.c_[tangent[:, 1], -tangent[:, 0], np.zeros(len(pts))]
+        horizontal /= np.linalg.norm(horizontal, axis=1, keepdims=True)
+        up = np.cross(horizontal, tangent)
+        across = np.stack([horizontal, up], axis=1)  # (n, 2, 3)
+        normal = np.zeros((len(pts), 2, 2))
+        seen = np.zeros(len(pts), np.int64)
+        for view in scene.images:
+            uv, _, inside = view.project(pts)
+            inside &= (
+                (uv[:, 0] > MARGIN_PX)
+                & (uv[:, 1] > MARGIN_PX)
+                & (uv[:, 0] < view.width - MARGIN_PX)
+                & (uv[:, 1] < view.height - MARGIN_PX)
+            )
+            idx = np.flatnonzero(inside)
+            if len(idx) == 0:
+                continue
+            jac = _projection_jacobian(view, pts[idx])
+            t_img = np.einsum("nij,nj->ni", jac, tangent[idx])
+            t_img /= np.linalg.norm(t_img, axis=1, keepdims=True)
+            row = np.einsum("ni,nij->nj", np.c_[-t_img[:, 1], t_img[:, 0]], jac)
+            a = np.einsum("nj,nkj->nk", row, across[idx])
+            normal[idx] += a[:, :, None] * a[:, None, :]
+            seen[idx] += 1
+        sigma = np.full(len(pts), np.inf)
+        ok = np.flatnonzero(seen >= 3)
+        if len(ok):
+            with np.errstate(all="ignore"):
+                cov = np.linalg.pinv(normal[ok]) * args.sigma_px**2
+            sigma[ok] = np.sqrt(np.abs(np.linalg.eigvalsh(cov)[:, -1]))
+        measurable = sigma <= max_sigma
+        hit = (
+            tree.query(pts, distance_upper_bound=TOLERANCE)[0] <= TOLERANCE
+            if tree is not None
+            else np.zeros(len(pts), bool)
+        )
+
+        def pct(mask: np.ndarray) -> float | None:
+            return float(100 * hit[mask].mean()) if mask.any() else None
+
+        row = {
+            "wire": w.get("name", w.get("id")),
+            "kind": w.get("kind", ""),
+            "length_m": float(len(pts) * STEP),
+            "measurable_pct": float(100 * measurable.mean()),
+            "completeness_pct": pct(np.ones(len(pts), bool)),
+            "completeness_measurable_pct": pct(measurable),
+            "completeness_elsewhere_pct": pct(~measurable),
+        }
+        rows.append(row)
+
+        def f(v: float | None) -> str:
+            return "    -" if v is None else f"{v:5.1f}"
+
+        print(
+            f"{str(row['wire']):11s} {row['kind']:7s} {row['length_m']:6.1f} "
+            f"{f(row['measurable_pct']):>13s} {f(row['completeness_pct']):>8s} "
+            f"{f(row['completeness_measurable_pct']):>16s} {f(row['completeness_elsewhere_pct']):>12s}"
+        )
+    if args.json:
+        args.json.write_text(json.dumps(rows, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
