@@ -46,6 +46,14 @@ def _samples(polyline: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return pts, tangent
 
 
+def _pct(hit: np.ndarray, mask: np.ndarray) -> float | None:
+    return float(100 * hit[mask].mean()) if mask.any() else None
+
+
+def _f(v: float | None) -> str:
+    return "    -" if v is None else f"{v:5.1f}"
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("scene", type=Path)
@@ -103,27 +111,21 @@ def main(argv: list[str] | None = None) -> int:
             else np.zeros(len(pts), bool)
         )
 
-        def pct(mask: np.ndarray) -> float | None:
-            return float(100 * hit[mask].mean()) if mask.any() else None
-
         row = {
             "wire": w.get("name", w.get("id")),
             "kind": w.get("kind", ""),
             "length_m": float(len(pts) * STEP),
             "measurable_pct": float(100 * measurable.mean()),
-            "completeness_pct": pct(np.ones(len(pts), bool)),
-            "completeness_measurable_pct": pct(measurable),
-            "completeness_elsewhere_pct": pct(~measurable),
+            "completeness_pct": _pct(hit, np.ones(len(pts), bool)),
+            "completeness_measurable_pct": _pct(hit, measurable),
+            "completeness_elsewhere_pct": _pct(hit, ~measurable),
         }
         rows.append(row)
-
-        def f(v: float | None) -> str:
-            return "    -" if v is None else f"{v:5.1f}"
-
         print(
             f"{str(row['wire']):11s} {row['kind']:7s} {row['length_m']:6.1f} "
-            f"{f(row['measurable_pct']):>13s} {f(row['completeness_pct']):>8s} "
-            f"{f(row['completeness_measurable_pct']):>16s} {f(row['completeness_elsewhere_pct']):>12s}"
+            f"{_f(row['measurable_pct']):>13s} {_f(row['completeness_pct']):>8s} "
+            f"{_f(row['completeness_measurable_pct']):>16s} "
+            f"{_f(row['completeness_elsewhere_pct']):>12s}"
         )
     if args.json:
         args.json.write_text(json.dumps(rows, indent=1))
