@@ -87,8 +87,9 @@ MIN_TRACED_SHARE = 0.2
 # A round's points past an end that leave the wire's curve, continued, by more than this many
 # standard errors (its fit's and theirs) are not the wire's: a support, with the next span's
 # wire bending away, or clutter the looser test took. They are dropped and that end stops.
-# On the shared generator's single spans the true extensions stay within 3.8; on the real
-# road flight (poles every ~65 m) the rounds past a pole reach 5-13.
+# On the shared generator's single spans the true extensions stay within 3.8 (one round of a
+# shield piece on the area survey: 7.1); on the real road flight (poles every ~65 m) the
+# rounds past a pole reach 5-13.
 MAX_BEND = 4.0
 
 # A wire's traced share is judged on at least this many places where the views would fix it
