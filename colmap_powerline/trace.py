@@ -159,6 +159,17 @@ def _frames(wire: FittedWire, s: F64) -> tuple[F64, F64, F64]:
     return pts, tangent, np.stack([horizontal, up], axis=1)
 
 
+def image_normals(view: SceneImage, pts: F64, tangent: F64) -> tuple[F64, F64]:
+    """The wire's unit normal in the image at each point (from its projected tangent), and
+    the row of the projection's Jacobian across it: an offset of the image line along that
+    normal is that row times the point's move (px per model unit). (N, 2) and (N, 3)."""
+    jac = _projection_jacobian(view, pts)  # (n, 2, 3)
+    t_img = np.einsum("nij,nj->ni", jac, tangent)
+    t_img /= np.linalg.norm(t_img, axis=1, keepdims=True)
+    normal = np.c_[-t_img[:, 1], t_img[:, 0]]
+    return normal, np.einsum("ni,nij->nj", normal, jac)
+
+
 def _observe(
     view: SceneImage,
     places: _Places,
@@ -179,11 +190,7 @@ def _observe(
     idx, uv = cand[inside], uv[inside]
     if len(idx) == 0:
         return None
-    # The wire's direction in the image at each place, from the projected tangent.
-    jac = _projection_jacobian(view, places.pts[idx])  # (n, 2, 3)
-    t_img = np.einsum("nij,nj->ni", jac, places.tangent[idx])
-    t_img /= np.linalg.norm(t_img, axis=1, keepdims=True)
-    normal = np.c_[-t_img[:, 1], t_img[:, 0]]
+    normal, rows = image_normals(view, places.pts[idx], places.tangent[idx])
     # A place another wire passes as near in this image is ambiguous here.
     tree = cKDTree(uv)
     near = tree.query_pairs(reach_px + 2, output_type="ndarray")
@@ -192,7 +199,7 @@ def _observe(
     if len(near):
         ambiguous[near[other].ravel()] = True
     keep = ~ambiguous & (places.wire[idx] < places.n_traced)
-    idx, uv, jac, normal = idx[keep], uv[keep], jac[keep], normal[keep]
+    idx, uv, normal, rows = idx[keep], uv[keep], normal[keep], rows[keep]
     if len(idx) == 0:
         return None
     px = np.floor(uv).astype(np.int64)
@@ -219,7 +226,6 @@ def _observe(
     strong = cv2.dilate(strong.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
     loose = found.copy()
     loose[np.flatnonzero(found)[~strong[cy, cx]]] = False
-    rows = np.einsum("ni,nij->nj", normal, jac)
     return idx, rows, np.where(strict, offset, np.nan), np.where(loose, offset, np.nan)
 
 

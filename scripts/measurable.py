@@ -27,7 +27,7 @@ import open3d as o3d
 from scipy.spatial import cKDTree
 
 from colmap_powerline.scene import load_scene
-from colmap_powerline.verify import _projection_jacobian
+from colmap_powerline.trace import image_normals
 from colmap_powerline.wires import WiresOptions
 
 STEP = 0.1  # m between samples along a true wire
@@ -91,10 +91,7 @@ def main(argv: list[str] | None = None) -> int:
             idx = np.flatnonzero(inside)
             if len(idx) == 0:
                 continue
-            jac = _projection_jacobian(view, pts[idx])
-            t_img = np.einsum("nij,nj->ni", jac, tangent[idx])
-            t_img /= np.linalg.norm(t_img, axis=1, keepdims=True)
-            row = np.einsum("ni,nij->nj", np.c_[-t_img[:, 1], t_img[:, 0]], jac)
+            _, row = image_normals(view, pts[idx], tangent[idx])
             a = np.einsum("nj,nkj->nk", row, across[idx])
             normal[idx] += a[:, :, None] * a[:, None, :]
             seen[idx] += 1

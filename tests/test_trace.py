@@ -14,8 +14,8 @@ from colmap_powerline.detect import DetectOptions
 from colmap_powerline.evaluate import distance_to_polyline
 from colmap_powerline.pipeline import crop_wire_mask
 from colmap_powerline.synthetic import TrueWire, load_true_wires
-from colmap_powerline.trace import TraceOptions, trace_wires
-from colmap_powerline.wires import FittedWire, WiresOptions
+from colmap_powerline.trace import MAX_BEND, TraceOptions, _leaves_curve, trace_wires
+from colmap_powerline.wires import FittedWire, WiresOptions, _fit
 
 
 def _curve(t: TrueWire, wire_id: int, lo: float, hi: float, lift: float) -> FittedWire:
@@ -190,9 +190,6 @@ def test_points_past_a_support_leave_the_curve_continued():
     """A wire fitted to 40 m of its span: more of the same span, past the end, stays on the
     curve continued; the next span's wire, hanging from a support at the end (or turning
     10° there), leaves it by more than MAX_BEND standard errors."""
-    from colmap_powerline.trace import MAX_BEND, _leaves_curve
-    from colmap_powerline.wires import _fit
-
     rng = np.random.default_rng(3)
     s_fit = np.arange(0.0, 40.0, 0.025)  # a traced place every 2.5 cm
     pts = _catenary_points(s_fit, 30.0, 0.0, rng)
@@ -203,9 +200,8 @@ def test_points_past_a_support_leave_the_curve_continued():
     same = _catenary_points(s_new, 30.0, 0.0, rng)
     assert _leaves_curve(wire, pts, same, sigma, 10.0) < MAX_BEND
     # The next span: lowest 30 m past the support at s = 40, hanging from the same point.
-    nxt = _catenary_points(s_new, 70.0, 0.0, rng)
     z40 = 300 * (np.cosh(10 / 300) - 1)
-    nxt[:, 2] += z40 - 300 * (np.cosh(-30 / 300) - 1)
+    nxt = _catenary_points(s_new, 70.0, z40 - 300 * (np.cosh(-30 / 300) - 1), rng)
     assert _leaves_curve(wire, pts, nxt, sigma, 10.0) > MAX_BEND
     # The same span's height, but the line turns by 10° at the support.
     turned = same.copy()
