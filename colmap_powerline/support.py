@@ -205,8 +205,9 @@ def _strips(offsets: F64, gap: float) -> list[F64]:
     return np.split(order, cuts)
 
 
-def _advice(wire: FittedWire, groups: list[F64], need: float) -> str:
-    """What to fly so that a view can tell this wire from a false pairing."""
+def _advice(wire: FittedWire, groups: list[F64], need: float, hidden: bool = False) -> str:
+    """What to fly so that a view can tell this wire from a false pairing (``hidden``: the
+    views that could see it only where other wires lie on it)."""
     mid = wire.points(np.array([0.5 * sum(wire.s_range)]))[0]
     centres = [float(np.median(g)) for g in groups]
     # An offset at least ``need`` from every strip that sees it, as close to the wire as that.
@@ -218,9 +219,15 @@ def _advice(wire: FittedWire, groups: list[F64], need: float) -> str:
         if abs(target) < 0.5 * need
         else f"{abs(target):.0f} m to the " + ("right" if target > 0 else "left")
     )
+    where = ", ".join(f"{c:+.0f}" for c in centres)
+    seen = (
+        f"the views that could tell it from a false pairing see it only where other wires lie "
+        f"on it (stacked wires; {len(groups)} strip(s) see it, at {where} m across the wire)"
+        if hidden
+        else f"only {len(groups)} strip(s) see it (at {where} m across the wire)"
+    )
     return (
-        f"only {len(groups)} strip(s) see it (at {', '.join(f'{c:+.0f}' for c in centres)} "
-        f"m across the wire): fly one more strip along the line {side} of it (at least "
+        f"{seen}: fly one more strip along the line {side} of it (at least "
         f"{need:.0f} m from the others), or a few images across the line near "
         f"({mid[0]:.1f}, {mid[1]:.1f})"
     )
@@ -427,15 +434,19 @@ def wire_support(
 
     def judge(
         k: int, others: set[int]
-    ) -> tuple[float | None, F64, F64, npt.NDArray[np.bool_], bool]:
-        """(confidence, length, hit share, views used, whether views that can tell decided)
-        of wire k, where the wires ``others`` explain what they cover.
+    ) -> tuple[float | None, F64, F64, npt.NDArray[np.bool_], str | None]:
+        """(confidence, length, hit share, views used, why the views that can tell did not
+        decide: None when they did, "glimpse", "hidden" or "none") of wire k, where the
+        wires ``others`` explain what they cover.
 
-        Views that can tell decide wherever they see enough of the wire to (even when what
-        they see is all explained by other wires). When they see only a glimpse of it, too
-        little to confirm it, and do not reject it either (70 px in one view of a wire 14
-        views see along 1500 px), the wire is judged as one that no view can tell: by every
-        strip that sees it."""
+        Views that can tell decide wherever they see enough of the wire to. When they see
+        only a glimpse of it, too little to confirm it, and do not reject it either (70 px
+        in one view of a wire 14 views see along 1500 px), or when all they see of it lies
+        on other wires (a conductor hidden behind its neighbours from every view that can
+        tell: on the shared generator's flight across, seed 2, the top conductor lies on
+        the middle one from half of them and on the lowest from the others), the wire is
+        judged as one that no view can tell: by every strip that sees it. A duplicate of a
+        wire lies on it from every view and stays unconfirmed."""
         ms, cross = measured[k][0], measured[k][1]
         explained = explained_by(k, others)
         rows = np.array([m.share(~e) for m, e in zip(ms, explained, strict=True)]).reshape(-1, 3)
@@ -446,13 +457,15 @@ def wire_support(
         rate = np.where(np.isfinite(rate), rate, typical_rate)
         seen = np.array([0.5 * len(m.uv) for m in ms])
         glimpse = seen[cross].sum() < GLIMPSE_SHARE * seen.sum()
+        why = "none"
         if (cross & (seen >= options.min_projected_px)).any():
             confidence, rejected = decide(k, others, cross, seen, length, hit, chance, rate)
             # None: what they see of it other wires explain.
-            if sure(confidence) or rejected or confidence is None or not glimpse:
-                return confidence, length, hit, cross & informative, True
+            if confidence is not None and (sure(confidence) or rejected or not glimpse):
+                return confidence, length, hit, cross & informative, None
+            why = "hidden" if confidence is None else "glimpse"
         confidence, _ = decide(k, others, np.zeros(len(ms), bool), seen, length, hit, chance, rate)
-        return confidence, length, hit, informative, False
+        return confidence, length, hit, informative, why
 
     def decide(
         k: int,
@@ -586,8 +599,8 @@ def wire_support(
     out = []
     for k, wire in enumerate(wires):
         ms, cross, groups, height = measured[k][:4]
-        confidence, length, hit, use, told = judge(k, accepted - {k})
-        strong = told  # views that can tell decided (not a glimpse in one of them)
+        confidence, length, hit, use, why = judge(k, accepted - {k})
+        strong = why is None  # views that can tell decided (not a glimpse in one of them)
         all_len = np.maximum(0.5 * np.array([len(m.uv) for m in ms]), 1e-9)
         all_hit = np.array([m.hit.mean() for m in ms])
         all_chance = np.array([m.control.mean() for m in ms])
@@ -607,7 +620,7 @@ def wire_support(
                 height_above_ground=height_above_ground(scene, wire),
                 advice=None
                 if strong or not groups
-                else _advice(wire, groups, crossing_offset * height),
+                else _advice(wire, groups, crossing_offset * height, why == "hidden"),
                 supported_s=None if k in accepted else stretch(k, accepted - {k}),
             )
         )

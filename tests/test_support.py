@@ -52,11 +52,11 @@ def two_strips():
 BOTH = (0, 1, 2, 3, 4)
 
 
-def _masks(span, scene, wire_ids):
-    """Exact masks of the true wires ``wire_ids``, grown by the tolerance, as verification
-    hands them on."""
+def _masks(span, scene, wire_ids, extra=()):
+    """Exact masks of the true wires ``wire_ids`` (and the polylines ``extra``), grown by the
+    tolerance, as verification hands them on."""
     tolerance = VerifyOptions().tolerance_px
-    polylines = [span.wires[k].polyline(0.005) for k in wire_ids]
+    polylines = [span.wires[k].polyline(0.005) for k in wire_ids] + list(extra)
     middle = np.mean([w.points(np.array([0.5 * w.length_m]))[0] for w in span.wires], axis=0)
     d = span.wires[0].direction_xy
     azimuth = float(np.rad2deg(np.arctan2(d[0], d[1])) % 180.0)
@@ -217,3 +217,45 @@ def test_a_glimpse_from_a_view_that_can_tell_leaves_the_wire_to_the_strips(two_s
     s0 = _judge(scene3, [*pixels, blind], pair_centres, wires)[0]
     assert s0.crossing_views == 1 and s0.geometry == "strong", s0
     assert s0.confidence is not None and s0.confidence < 0.99, s0
+
+
+def test_a_wire_hidden_behind_another_from_every_view_that_can_tell_is_left_to_the_strips(
+    two_strips,
+):
+    """The only view that can tell sees conductor 0 where another wire lies on it all along
+    (a wire hanging higher, on that camera's rays through conductor 0: stacked wires, as the
+    top conductor of the shared generator's flight across, seed 2, lies on its neighbours in
+    every view that can tell). That view says nothing about conductor 0, so the two strips,
+    which see it apart from the other wire, decide: it stays, weak, and the advice says why.
+    A copy of conductor 0 lies on it from every view: one of the two goes."""
+    span, scene, pixels, pair_centres = two_strips
+    d = span.wires[0].direction_xy
+    wires = [
+        _wire(span.wires[k].points(np.linspace(2.0, span.wires[k].length_m - 2.0, 400)), k, d)
+        for k in BOTH
+    ]
+    along = span.wires[0].points(np.linspace(2.0, span.wires[0].length_m - 2.0, 400))
+    third = max(
+        (v for v, s in zip(span.views, span.strips, strict=True) if s == 2),
+        key=lambda v: int(v.project(along)[2].sum()),
+    )
+    # The hiding wire: 15 % of the way from conductor 0 towards the third camera.
+    centre = third.center_in_world
+    hider = centre + 0.85 * (along - centre)
+    assert np.median(hider[:, 2] - along[:, 2]) > 2.0
+    scene3 = dataclasses.replace(scene, images=(*scene.images, third))
+    masks = _masks(span, scene3, BOTH, extra=[hider])
+    wires.append(_wire(hider, 9, d))
+
+    by_id = {s.wire_id: s for s in _judge(scene3, masks, pair_centres, wires)}
+    s0 = by_id[0]
+    assert s0.crossing_views == 1 and s0.geometry == "weak", s0
+    assert s0.confidence is not None and s0.confidence >= 0.99, s0
+    assert s0.advice and "only where other wires lie on it" in s0.advice, s0
+    for k in BOTH[1:]:
+        assert by_id[k].confidence is not None and by_id[k].confidence >= 0.99, by_id[k]
+
+    copy = _wire(along + [0.0, 0.0, 0.01], 10, d)
+    by_id = {s.wire_id: s for s in _judge(scene3, masks, pair_centres, [*wires, copy])}
+    kept = [k for k in (0, 10) if SupportOptions().accepts(by_id[k].confidence)]
+    assert len(kept) == 1, (by_id[0], by_id[10])
