@@ -144,15 +144,20 @@ def measure_wire(
 
 def assign_kinds(measures: Sequence[WireMeasures], min_gap_m: float = 4.0) -> None:
     """Mark shield (earth) wires: the one or two wires that run clearly above all the others
-    (at least ``min_gap_m`` above the next, with at least three wires below them). Phase
-    conductors hang from cross-arms below the tower peak that carries the shield wires."""
+    (at least ``min_gap_m`` above the next), when the wires below them are whole three-phase
+    circuits (a multiple of three). Phase conductors hang from cross-arms below the tower
+    peak that carries the shield wires; but when the shields were not found, the top phases
+    of a double circuit are just as clearly above the rest (the package's demo: two of six
+    conductors 5 m above the others), and an energised conductor reported as an earth wire
+    is the worse mistake: then every wire stays a conductor."""
     heights = np.array([m.clearance_vertical_m for m in measures])
     if len(heights) < 4:
         return
     order = np.argsort(heights)[::-1]
     for top in (1, 2):
         gap = heights[order[top - 1]] - heights[order[top]]
-        if gap >= min_gap_m and len(heights) - top >= 3:
+        below = len(heights) - top
+        if gap >= min_gap_m and below >= 3 and below % 3 == 0:
             for k in order[:top]:
                 measures[k].kind = "shield"
             return

@@ -85,6 +85,18 @@ def test_shield_wires_are_the_ones_clearly_above():
     measures = [measure_wire(_wire(k, float(k), h), ground) for k, h in enumerate(heights)]
     assign_kinds(measures)
     assert [m.kind for m in measures] == ["conductor"] * 6 + ["shield"] * 2
+    # One shield over two circuits.
+    measures = [measure_wire(_wire(k, float(k), h), ground) for k, h in enumerate(heights[:7])]
+    assign_kinds(measures)
+    assert [m.kind for m in measures] == ["conductor"] * 6 + ["shield"]
+    # The shields not found: the top phases of the two circuits, 5 m above the others, are
+    # not shield wires (four conductors are no whole number of three-phase circuits).
+    measures = [
+        measure_wire(_wire(k, float(k), h), ground)
+        for k, h in enumerate([16.0, 16.2, 20.5, 20.7, 26.0, 26.3])
+    ]
+    assign_kinds(measures)
+    assert {m.kind for m in measures} == {"conductor"}
     # A distribution line (no shield wire): nothing clearly above the rest.
     measures = [measure_wire(_wire(k, float(k), h), ground) for k, h in enumerate([8, 9, 9, 10])]
     assign_kinds(measures)
