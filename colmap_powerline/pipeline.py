@@ -451,6 +451,8 @@ def reconstruct(
         and s.height_above_ground >= options.triangulate.min_wire_height
         and w.s_range[1] - w.s_range[0] >= options.wires.max_gap
     ]
+    on_ground = sum(s.height_above_ground < options.triangulate.min_wire_height for s in supports)
+    n_candidates = len(candidates)
     kept, supports = keep_supported(
         candidates, supports, options.support, options.triangulate.min_wire_height
     )
@@ -546,6 +548,21 @@ def reconstruct(
         len(verified),
         int((labels >= 0).sum()),
     )
+    if not wires:
+        why = []
+        if on_ground:
+            why.append(f"{on_ground} lay on the ground (road edges, field rows, shadows)")
+        if n_candidates > on_ground:
+            why.append(f"the views confirmed none of the other {n_candidates - on_ground}")
+        logger.warning(
+            "no wire found: %d wires were hypothesised from %d verified points%s. If the "
+            "images show wires, they are too faint against this ground for the line detector "
+            "(a wire of the ground's colour), or too few images see them from positions "
+            "across them; the outputs hold no wire",
+            n_candidates,
+            len(verified),
+            "; " + " and ".join(why) if why else "",
+        )
 
     t0 = time.perf_counter()
     ground, source = scene.ground, "sparse points"
