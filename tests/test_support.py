@@ -84,6 +84,26 @@ def _wire(points, wire_id, direction_xy):
     )
 
 
+def _along(t) -> np.ndarray:
+    """400 points along a true wire, 2 m clear of its ends."""
+    return t.points(np.linspace(2.0, t.length_m - 2.0, 400))
+
+
+def _true_wires(span) -> list[FittedWire]:
+    """The wires both strips see, fitted to their true curves."""
+    d = span.wires[0].direction_xy
+    return [_wire(_along(span.wires[k]), k, d) for k in BOTH]
+
+
+def _third_view(span):
+    """The third strip's view that sees most of conductor 0."""
+    along = _along(span.wires[0])
+    return max(
+        (v for v, s in zip(span.views, span.strips, strict=True) if s == 2),
+        key=lambda v: int(v.project(along)[2].sum()),
+    )
+
+
 def _judge(scene, pixels, pair_centres, wires: list[FittedWire], rate: float = 0.9):
     n = 400 * (max(w.wire_id for w in wires) + 1)
     return wire_support(
@@ -104,12 +124,7 @@ def test_two_strips_keep_wires_stacked_over_each_other(two_strips):
     lie on the others in its images: the other strip confirms each of them, so every wire
     both strips see is kept, on weak geometry with what to fly."""
     span, scene, pixels, pair_centres = two_strips
-    d = span.wires[0].direction_xy
-    wires = [
-        _wire(span.wires[k].points(np.linspace(2.0, span.wires[k].length_m - 2.0, 400)), k, d)
-        for k in BOTH
-    ]
-    supports = _judge(scene, pixels, pair_centres, wires)
+    supports = _judge(scene, pixels, pair_centres, _true_wires(span))
     assert [s.wire_id for s in supports] == list(BOTH)
     for s in supports:
         assert s.strips == 2, s
@@ -130,10 +145,7 @@ def test_two_strips_drop_a_false_pairing_hidden_behind_a_true_wire(two_strips):
     span, scene, pixels, pair_centres = two_strips
     d = span.wires[0].direction_xy
     normal = np.array([d[1], -d[0]])
-    true = {
-        k: _wire(span.wires[k].points(np.linspace(2.0, span.wires[k].length_m - 2.0, 400)), k, d)
-        for k in BOTH
-    }
+    true = dict(zip(BOTH, _true_wires(span), strict=True))
     # The pairing as the pair triangulates it, in each plane across the line: the left
     # camera's ray through conductor 0 meets the middle camera's ray through conductor 2.
     c0, c2 = span.wires[0], span.wires[2]
@@ -182,19 +194,11 @@ def test_a_glimpse_from_a_view_that_can_tell_leaves_the_wire_to_the_strips(two_s
     reported weak, with its one crossing view. A view that sees it all along and misses it
     does reject it."""
     span, scene, pixels, pair_centres = two_strips
-    d = span.wires[0].direction_xy
-    wires = [
-        _wire(span.wires[k].points(np.linspace(2.0, span.wires[k].length_m - 2.0, 400)), k, d)
-        for k in BOTH
-    ]
+    wires = _true_wires(span)
     # The third strip's view that sees most of conductor 0, and the point of it nearest to
     # that image's centre.
-    along = span.wires[0].points(np.linspace(2.0, span.wires[0].length_m - 2.0, 400))
-    third = max(
-        (v for v, s in zip(span.views, span.strips, strict=True) if s == 2),
-        key=lambda v: int(v.project(along)[2].sum()),
-    )
-    uv = third.project(along)[0]
+    third = _third_view(span)
+    uv = third.project(_along(span.wires[0]))[0]
     centre = uv[np.nanargmin(np.linalg.norm(uv - [third.width / 2, third.height / 2], axis=1))]
     scene3 = dataclasses.replace(scene, images=(*scene.images, third))
     v3 = len(scene.images)
@@ -230,15 +234,9 @@ def test_a_wire_hidden_behind_another_from_every_view_that_can_tell_is_left_to_t
     A copy of conductor 0 lies on it from every view: one of the two goes."""
     span, scene, pixels, pair_centres = two_strips
     d = span.wires[0].direction_xy
-    wires = [
-        _wire(span.wires[k].points(np.linspace(2.0, span.wires[k].length_m - 2.0, 400)), k, d)
-        for k in BOTH
-    ]
-    along = span.wires[0].points(np.linspace(2.0, span.wires[0].length_m - 2.0, 400))
-    third = max(
-        (v for v, s in zip(span.views, span.strips, strict=True) if s == 2),
-        key=lambda v: int(v.project(along)[2].sum()),
-    )
+    wires = _true_wires(span)
+    along = _along(span.wires[0])
+    third = _third_view(span)
     # The hiding wire: 15 % of the way from conductor 0 towards the third camera.
     centre = third.center_in_world
     hider = centre + 0.85 * (along - centre)
