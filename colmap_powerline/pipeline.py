@@ -412,6 +412,10 @@ def reconstruct(
     pair_centres = np.array(
         [[p.left.center_in_world, p.right.center_in_world] for p in pairs]
     ).reshape(-1, 2, 3)
+    index_of = {view.name: k for k, view in enumerate(scene.images)}
+    pair_views = np.array(
+        [[index_of[p.left.name], index_of[p.right.name]] for p in pairs], np.int64
+    ).reshape(-1, 2)
 
     def judge(wires: list[FittedWire]) -> list[WireSupport]:
         return wire_support(
@@ -424,6 +428,7 @@ def reconstruct(
             options.verify.crossing_offset,
             options.verify.tolerance_px,
             options.support,
+            pair_views,
         )
 
     supports = judge(candidates)
