@@ -305,3 +305,30 @@ def test_a_wire_only_one_kind_of_pair_produced_is_a_false_pairing():
     # poorly (0.3 of their share; true wires' kinds give at least 0.22 on both generators).
     mostly = np.where(np.arange(400) < 120, np.arange(400) % 6, one_kind)
     assert not disagree(mostly)
+
+
+def test_views_that_can_tell_do_not_outvote_a_strip_that_misses_the_wire(two_strips):
+    """The third strip's view can tell and confirms conductor 1; both strips along the line
+    see it too. With every view on it, it stays, on strong geometry. When the middle strip's
+    views never find it there (a line that only the other views see: on the shared mixed
+    seed 2, a line 6.7 m above the ground along the wires' shadows, confirmed by the views
+    able to tell), it goes: a real wire lands on wire pixels from every strip that sees it
+    about as often as those views see true wires."""
+    span, scene, pixels, pair_centres = two_strips
+    wires = _true_wires(span)
+    scene3 = dataclasses.replace(scene, images=(*scene.images, _third_view(span)))
+    every = _masks(span, scene3, BOTH)
+    by_id = {s.wire_id: s for s in _judge(scene3, every, pair_centres, wires)}
+    assert by_id[1].geometry == "strong" and by_id[1].crossing_views == 1, by_id[1]
+    assert SupportOptions().accepts(by_id[1].confidence), by_id[1]
+
+    without = _masks(span, scene3, [k for k in BOTH if k != 1])
+    middle = [s for s in span.strips if s in STRIPS] + [2]
+    masks = [
+        w if middle[v] == 1 else e for v, (e, w) in enumerate(zip(every, without, strict=True))
+    ]
+    by_id = {s.wire_id: s for s in _judge(scene3, masks, pair_centres, wires)}
+    assert not SupportOptions().accepts(by_id[1].confidence), by_id[1]
+    for k in BOTH:
+        if k != 1:
+            assert SupportOptions().accepts(by_id[k].confidence), by_id[k]
