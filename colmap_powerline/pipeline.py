@@ -409,13 +409,11 @@ def reconstruct(
     candidates = split_wires(verified.pts_in_world, corridor.azimuth_deg, options.wires)
     timings["wires"] = time.perf_counter() - t0
     t0 = time.perf_counter()
-    pair_centres = np.array(
-        [[p.left.center_in_world, p.right.center_in_world] for p in pairs]
-    ).reshape(-1, 2, 3)
     index_of = {view.name: k for k, view in enumerate(scene.images)}
     pair_views = np.array(
         [[index_of[p.left.name], index_of[p.right.name]] for p in pairs], np.int64
     ).reshape(-1, 2)
+    pair_centres = scene.centers_in_world[pair_views]
 
     def judge(wires: list[FittedWire]) -> list[WireSupport]:
         return wire_support(

@@ -223,6 +223,12 @@ def _strips(offsets: F64, gap: float) -> list[F64]:
     return np.split(order, cuts)
 
 
+def _strip_of(groups: list[F64], offsets: F64) -> npt.NDArray[np.int64]:
+    """The strip (index into ``groups``) of each position across the wire that lies in one."""
+    starts = np.array([float(g[0]) for g in groups[1:]])
+    return np.searchsorted(starts, offsets, side="right").astype(np.int64)
+
+
 def _advice(wire: FittedWire, groups: list[F64], need: float, hidden: bool = False) -> str:
     """What to fly so that a view can tell this wire from a false pairing (``hidden``: the
     views that could see it only where other wires lie on it)."""
@@ -277,8 +283,7 @@ def _pair_kinds_disagree(
     normal = np.array([wire.plane_direction_xy[1], -wire.plane_direction_xy[0]])
     lateral = (centres[:, :2] - wire.plane_origin_xy) @ normal
     groups = _strips(lateral[np.unique(pair_views)], gap)
-    cuts = np.array([0.5 * (a[-1] + b[0]) for a, b in zip(groups[:-1], groups[1:], strict=True)])
-    strips = np.sort(np.searchsorted(cuts, lateral[pair_views]), axis=1)
+    strips = np.sort(_strip_of(groups, lateral[pair_views]), axis=1)
     kinds = strips[:, 0] * len(groups) + strips[:, 1]
     counts = np.bincount(point_pair[wire.point_indices], minlength=len(pair_views))
     total = float(counts[sees].sum())
@@ -383,8 +388,7 @@ def wire_support(
         lateral = (centres[view_idx, :2] - wire.plane_origin_xy) @ normal
         groups = _strips(lateral, crossing_offset * height) if len(lateral) else []
         # Each view's strip: the group its offset across the wire falls in.
-        cuts = [float(g[0]) for g in groups[1:]]
-        strip_of = np.searchsorted(np.array(cuts), lateral, side="right")
+        strip_of = _strip_of(groups, lateral)
         strength = sum(0.5 * len(m.uv) * (m.hit.mean() - m.control.mean()) for m in ms)
         disagree = False
         if pair_views is not None and len(pair_views):
@@ -549,7 +553,6 @@ def wire_support(
     ) -> tuple[float | None, bool]:
         """(confidence, whether the views' hits reject it) of wire k from the views that can
         tell (``cross``) or, without any, from every strip."""
-        ms = measured[k][0]
         informative = length >= options.min_projected_px
         use = cross & informative if cross.any() else informative
         if not use.any():
@@ -584,7 +587,6 @@ def wire_support(
         groups += [along & (strips == g) for g in np.unique(strips[along])]
         if any(short(sel) for sel in groups):
             confidence, rejected = min(confidence, 0.5), True
-        strip_of = strips if not cross.any() else np.zeros(len(ms), np.int64)
         if not cross.any() and sure(confidence):
             # Seen only from strips along it, a wire is measured from two of them. Where
             # other wires lie on most of what one strip sees of it, that strip cannot confirm
@@ -594,8 +596,8 @@ def wire_support(
             # second case the true wire i is missing, and its image is free in that strip:
             # the wire goes when, moved along the rays of the strip that confirms it, it
             # meets an image wire there that no other wire explains.
-            for g in np.unique(strip_of):
-                sel = strip_of == g
+            for g in np.unique(strips):
+                sel = strips == g
                 if (
                     seen[sel].sum() >= options.min_projected_px
                     and length[sel].sum() < MIN_OWN_SHARE * seen[sel].sum()
