@@ -29,9 +29,14 @@ from colmap_powerline.detect import DetectOptions, line_response
 
 
 def conductor_pixels(
-    rec: pycolmap.Reconstruction, image: pycolmap.Image, wires: list[dict], shape: tuple[int, int]
+    rec: pycolmap.Reconstruction,
+    image: pycolmap.Image,
+    wires: list[dict],
+    shape: tuple[int, int],
+    kind: str = "phase",
 ) -> tuple[list[np.ndarray], np.ndarray, float]:
-    """Projected conductors (pixel centres at integers), a mask of every wire, their direction."""
+    """Projected wires of one kind (pixel centres at integers), a mask of every wire, their
+    direction."""
     cam = rec.cameras[image.camera_id]
     m = image.cam_from_world().matrix()
     drawn = np.zeros(shape, np.uint8)
@@ -48,7 +53,7 @@ def conductor_pixels(
         if len(uv) < 50:
             continue
         cv2.polylines(drawn, [np.round(uv * 16).astype(np.int32)], False, 255, 1, cv2.LINE_AA, 4)
-        if w["kind"] == "phase":
+        if w["kind"] == kind:
             conductors.append(uv)
             d = uv[-1] - uv[0]
             dirs.append(np.degrees(np.arctan2(d[1], d[0])) % 180.0)
@@ -60,6 +65,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("scene", type=Path, help="a scene of the shared generator")
     parser.add_argument("--images", type=int, default=4, help="images seeing most wire (4)")
     parser.add_argument("--lengths", type=int, nargs="+", default=[15, 25, 45, 101, 201])
+    parser.add_argument("--kind", choices=["phase", "shield"], default="phase")
     args = parser.parse_args(argv)
     for need in ("images", "sparse_gt", "gt/wires.json"):
         if not (args.scene / need).exists():
@@ -71,7 +77,7 @@ def main(argv: list[str] | None = None) -> int:
     shape = (cam.height, cam.width)
     seen = []
     for image in rec.images.values():
-        conductors, _, _ = conductor_pixels(rec, image, wires, shape)
+        conductors, _, _ = conductor_pixels(rec, image, wires, shape, args.kind)
         seen.append((sum(len(c) for c in conductors), image.name, image))
     seen.sort(key=lambda s: -s[0])
     table: dict[int, list[tuple[float, float, float]]] = {n: [] for n in args.lengths}
@@ -84,7 +90,7 @@ def main(argv: list[str] | None = None) -> int:
         if gray is None:
             print(f"{args.scene / 'images' / name}: cannot be read")
             return 2
-        conductors, drawn, direction = conductor_pixels(rec, image, wires, shape)
+        conductors, drawn, direction = conductor_pixels(rec, image, wires, shape, args.kind)
         far = cv2.dilate(drawn, np.ones((41, 41), np.uint8)) == 0
         pix = np.round(np.concatenate(conductors)).astype(int)
         for length in args.lengths:
@@ -105,7 +111,7 @@ def main(argv: list[str] | None = None) -> int:
                 )
             )
     print(f"{args.scene}: images {', '.join(used)}")
-    print("template px | conductor px above background p99 | above p99.9 | median ratio")
+    print(f"template px | {args.kind} px above background p99 | above p99.9 | median ratio")
     for length, rows in table.items():
         a = np.mean(rows, axis=0)
         print(f"{length:11d} | {a[0]:33.2f} | {a[1]:11.2f} | {a[2]:12.2f}")
