@@ -531,8 +531,9 @@ def reconstruct(
     if wires:
         wires, verified = _consensus(wires, verified, primitives)
         t1 = time.perf_counter()
+        matches = np.concatenate([p.pts_in_world for p in primitives])
         wires, supports, verified, dec = _traced(
-            wires, supports, verified, scene, corridor, options
+            wires, supports, verified, scene, corridor, options, primitives=matches
         )
         decoded += dec
         wires, supports = _without_untraced(wires, supports)
@@ -678,9 +679,12 @@ def _traced(
     trace_options: TraceOptions | None = None,
     context: list[FittedWire] | None = None,
     min_redundancy: float = 0.0,
+    primitives: npt.NDArray[np.float64] | None = None,
 ) -> tuple[list[FittedWire], list[WireSupport], VerifiedPoints, list[Path]]:
     """The wires traced in every view (:func:`trace_wires`): refitted, their traced points
-    added to the measured ones, their ``traced_share`` in the support."""
+    added to the measured ones, their ``traced_share`` in the support (``primitives``: the
+    pairs' matches, which may take tracing farther along the line than the measured wires
+    reach)."""
     wires, traced = trace_wires(
         scene,
         wires,
@@ -696,6 +700,7 @@ def _traced(
         context,
         min_redundancy,
         options.verify.template_length_px,
+        primitives,
     )
     supports = [
         dataclasses.replace(s, traced_share=None if np.isnan(f) else round(float(f), 3))

@@ -507,6 +507,74 @@ def _leaves_curve(wire: FittedWire, pts: F64, new: F64, new_sigma: F64, corr: fl
     return max(t_across, t_height)
 
 
+# The pairs' matches continue a wire past its end, one metre at a time, while a metre holds
+# more than MATCH_CHANCE_RATIO times the matches of the same tube displaced above and below
+# the curve (the clutter there: a support's members, ground lines) and at least
+# MIN_MATCHES of them (a true wire seen by one pair gives one match per image row, tens per
+# metre at the half-scale GSD).
+MATCH_CHANCE_RATIO = 3.0
+MIN_MATCHES = 3
+# The displaced tubes: this many inlier distances above and below the curve.
+MATCH_CONTROL_OFFSETS = (-6.0, -3.0, 3.0, 6.0)
+
+
+def primitive_reach(
+    wires: list[FittedWire], primitives: F64, along: F64, inlier: float, bin_len: float = 1.0
+) -> tuple[float, float] | None:
+    """How far along the line (``along``) the pairs' matches follow the wires' curves
+    continued past their ends: from each end outwards, metre by metre (``bin_len``), while a
+    metre holds at least ``MIN_MATCHES`` matches within ``inlier`` of the curve and more than
+    ``MATCH_CHANCE_RATIO`` times as many as the same tube displaced above and below it
+    (one metre short of that is let pass). None: no wire or no match.
+
+    A wrong match lands on a confirmed curve, within centimetres, only by accident; a run of
+    them continuing it is the wire where too few views saw it for the verification to be
+    sure (the last strip of a flight across the line). Past a support the next span's wire
+    leaves the curve within a metre, and the members' clutter lies on the displaced tubes
+    as much as on the curve."""
+    if not wires or len(primitives) == 0:
+        return None
+    tree = cKDTree(primitives)
+    longest = max(w.s_range[1] - w.s_range[0] for w in wires)
+    reach_z = (max(abs(o) for o in MATCH_CONTROL_OFFSETS) + 1.0) * inlier
+    reached = []
+    for w in wires:
+        lo, hi = w.s_range
+        for sign, s0 in ((-1.0, lo), (1.0, hi)):
+            # The matches near the curve continued, in metres past the end.
+            s = s0 + sign * np.arange(0.0, longest + bin_len, 0.5 * bin_len)
+            near = tree.query_ball_point(w.points(s), r=reach_z + bin_len)
+            idx = np.unique(np.concatenate([np.asarray(n, np.int64) for n in near]))
+            last = 0.0
+            if len(idx):
+                ps, across, dz = w.plane_coords(primitives[idx])
+                past = sign * (ps - s0)
+                inside = (past >= 0) & (np.abs(across) < inlier)
+                n_bins = int(np.ceil(longest / bin_len)) + 1
+                b = np.clip((past / bin_len).astype(np.int64), 0, n_bins - 1)
+
+                counts = np.stack(
+                    [
+                        np.bincount(
+                            b[inside & (np.abs(dz - o * inlier) < inlier)], minlength=n_bins
+                        )
+                        for o in (0.0, *MATCH_CONTROL_OFFSETS)
+                    ]
+                ).astype(np.float64)
+                on_curve, control = counts[0], counts[1:].mean(axis=0)
+                ok = (on_curve >= MIN_MATCHES) & (on_curve > MATCH_CHANCE_RATIO * control)
+                # Walk out while the metres continue it (one short metre let pass).
+                k, miss = 0, 0
+                while k < n_bins and miss <= 1:
+                    if ok[k]:
+                        last, miss = (k + 1) * bin_len, 0
+                    else:
+                        miss += 1
+                    k += 1
+            reached.append(float(w.points(np.array([s0 + sign * last]))[0, :2] @ along))
+    return (min(reached), max(reached))
+
+
 def trace_wires(
     scene: Scene,
     wires: list[FittedWire],
@@ -522,6 +590,7 @@ def trace_wires(
     context: list[FittedWire] | None = None,
     min_redundancy: float = 0.0,
     template_length_px: int = 25,
+    primitives: F64 | None = None,
 ) -> tuple[list[FittedWire], TracedPoints]:
     """Measure each confirmed wire in every view that sees it (module docstring).
 
@@ -538,6 +607,9 @@ def trace_wires(
             (``MIN_REDUNDANCY`` for wires the support check did not confirm).
         template_length_px: the length of ``wire_mask``'s line template: places closer
             than that along a wire share their image evidence.
+        primitives: (M, 3) the pairs' matches, verified or not: the wires are traced as far
+            along the line as runs of them continue a wire's curve (:func:`primitive_reach`),
+            when that is farther than the measured wires reach.
 
     Returns:
         The wires refitted to their measured and traced points (indices past
@@ -590,6 +662,10 @@ def trace_wires(
         [w.points(np.array(w.s_range))[:, :2] @ along for w in wires + context]
     )
     reach = (float(ends_along.min()), float(ends_along.max()))
+    if primitives is not None:
+        matched = primitive_reach(wires, primitives, along, wires_options.inlier_distance)
+        if matched is not None:
+            reach = (min(reach[0], matched[0]), max(reach[1], matched[1]))
 
     def _along_limits(w: FittedWire, limits: tuple[float, float]) -> tuple[float, float]:
         """The wire's ``s`` where it reaches the limits along the line."""

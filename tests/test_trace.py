@@ -14,7 +14,13 @@ from colmap_powerline.detect import DetectOptions
 from colmap_powerline.evaluate import distance_to_polyline
 from colmap_powerline.pipeline import crop_wire_mask
 from colmap_powerline.synthetic import TrueWire, load_true_wires
-from colmap_powerline.trace import MAX_BEND, TraceOptions, _leaves_curve, trace_wires
+from colmap_powerline.trace import (
+    MAX_BEND,
+    TraceOptions,
+    _leaves_curve,
+    primitive_reach,
+    trace_wires,
+)
 from colmap_powerline.wires import FittedWire, WiresOptions, _fit
 
 
@@ -207,3 +213,34 @@ def test_points_past_a_support_leave_the_curve_continued():
     turned = same.copy()
     turned[:, 1] = (s_new - 40.0) * np.tan(np.radians(10.0)) + rng.normal(0, 0.02, len(s_new))
     assert _leaves_curve(wire, pts, turned, sigma, 10.0) > MAX_BEND
+
+
+def test_matches_continuing_a_wire_take_tracing_farther_along_the_line():
+    """A wire fitted to s 0–40 m: the pairs' matches that continue its curve to 70 m (where
+    too few views saw it for the verification to be sure) set how far tracing may go; a 10 m
+    gap stops the run; clutter as dense on the curve as beside it (a support's members) does
+    not extend it."""
+    rng = np.random.default_rng(5)
+    pts = _catenary_points(np.arange(0.0, 40.0, 0.05), 30.0, 0.0, rng)
+    wire = _fit(pts, np.arange(len(pts)), np.array([1.0, 0.0]), WiresOptions())
+    assert wire is not None
+    along = np.array([1.0, 0.0])
+    inlier = WiresOptions().inlier_distance
+    clutter = np.c_[
+        rng.uniform(-60, 120, 20000), rng.uniform(-20, 20, 20000), rng.uniform(0, 40, 20000)
+    ]
+    run = _catenary_points(np.arange(40.0, 70.0, 0.05), 30.0, 0.0, rng)
+    lo, hi = primitive_reach([wire], np.r_[clutter, run], along, inlier)
+    assert hi == pytest.approx(70.0, abs=1.0)
+    assert lo == pytest.approx(0.0, abs=0.5)  # nothing continues it before its start
+    # A 10 m gap (55–65 m) ends the run at 55 m.
+    gap = run[(run[:, 0] < 55.0) | (run[:, 0] > 65.0)]
+    _, hi = primitive_reach([wire], np.r_[clutter, gap], along, inlier)
+    assert hi == pytest.approx(55.0, abs=1.0)
+    # Clutter alone, even dense past the end: the wire's own end.
+    _, hi = primitive_reach([wire], clutter, along, inlier)
+    assert hi < 41.0
+    tower = np.c_[rng.uniform(40, 48, 40000), rng.uniform(-1, 1, 40000), rng.uniform(-5, 10, 40000)]
+    _, hi = primitive_reach([wire], np.r_[clutter, tower], along, inlier)
+    assert hi < 41.0
+    assert primitive_reach([], clutter, along, inlier) is None
