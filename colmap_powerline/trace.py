@@ -563,11 +563,15 @@ def primitive_reach(
                 ).astype(np.float64)
                 on_curve, control = counts[0], counts[1:].mean(axis=0)
                 ok = (on_curve >= MIN_MATCHES) & (on_curve > MATCH_CHANCE_RATIO * control)
+                # The farthest match on the curve in each metre.
+                on = inside & (np.abs(dz) < inlier)
+                farthest = np.zeros(n_bins)
+                np.maximum.at(farthest, b[on], past[on])
                 # Walk out while the metres continue it (one short metre let pass).
                 k, miss = 0, 0
                 while k < n_bins and miss <= 1:
                     if ok[k]:
-                        last, miss = (k + 1) * bin_len, 0
+                        last, miss = float(farthest[k]), 0
                     else:
                         miss += 1
                     k += 1

@@ -231,12 +231,12 @@ def test_matches_continuing_a_wire_take_tracing_farther_along_the_line():
     ]
     run = _catenary_points(np.arange(40.0, 70.0, 0.05), 30.0, 0.0, rng)
     lo, hi = primitive_reach([wire], np.r_[clutter, run], along, inlier)
-    assert hi == pytest.approx(70.0, abs=1.0)
+    assert hi == pytest.approx(70.0, abs=0.3)
     assert lo == pytest.approx(0.0, abs=0.5)  # nothing continues it before its start
     # A 10 m gap (55–65 m) ends the run at 55 m.
     gap = run[(run[:, 0] < 55.0) | (run[:, 0] > 65.0)]
     _, hi = primitive_reach([wire], np.r_[clutter, gap], along, inlier)
-    assert hi == pytest.approx(55.0, abs=1.0)
+    assert hi == pytest.approx(55.0, abs=0.3)
     # Clutter alone, even dense past the end: the wire's own end.
     _, hi = primitive_reach([wire], clutter, along, inlier)
     assert hi < 41.0
