@@ -613,7 +613,7 @@ def trace_wires(
             than that along a wire share their image evidence.
         primitives: (M, 3) the pairs' matches, verified or not: the wires are traced as far
             along the line as runs of them continue a wire's curve (:func:`primitive_reach`),
-            when that is farther than the measured wires reach.
+            when that is more than ``options.extend`` farther than the measured wires reach.
 
     Returns:
         The wires refitted to their measured and traced points (indices past
@@ -667,9 +667,16 @@ def trace_wires(
     )
     reach = (float(ends_along.min()), float(ends_along.max()))
     if primitives is not None:
+        # Taken where the matches run on for more than one round past the measured wires:
+        # a support's insulators and clamps, in line with the wire, give a shorter run
+        # (0.8 m on the package's span across the line, where the verified wires reach the
+        # supports; 9.5 m of wire that only one strip sees on the shared cross seed 2).
         matched = primitive_reach(wires, primitives, along, wires_options.inlier_distance)
         if matched is not None:
-            reach = (min(reach[0], matched[0]), max(reach[1], matched[1]))
+            reach = (
+                matched[0] if matched[0] < reach[0] - options.extend else reach[0],
+                matched[1] if matched[1] > reach[1] + options.extend else reach[1],
+            )
 
     def _along_limits(w: FittedWire, limits: tuple[float, float]) -> tuple[float, float]:
         """The wire's ``s`` where it reaches the limits along the line."""
