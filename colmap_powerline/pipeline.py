@@ -529,9 +529,9 @@ def reconstruct(
         # confirmed, grew past them).
         wires, supports = _without_members(wires, supports, corridor, options)
     if wires:
-        wires, verified = _consensus(wires, verified, primitives)
-        t1 = time.perf_counter()
         matches = np.concatenate([p.pts_in_world for p in primitives])
+        wires, verified = _consensus(wires, verified, primitives, matches)
+        t1 = time.perf_counter()
         wires, supports, verified, dec = _traced(
             wires, supports, verified, scene, corridor, options, primitives=matches
         )
@@ -811,7 +811,10 @@ def _without_untraced(
 
 
 def _consensus(
-    wires: list[FittedWire], verified: VerifiedPoints, primitives: list[Primitives]
+    wires: list[FittedWire],
+    verified: VerifiedPoints,
+    primitives: list[Primitives],
+    pts: npt.NDArray[np.float64] | None = None,
 ) -> tuple[list[FittedWire], VerifiedPoints]:
     """Every primitive lying on a confirmed wire's curve between its ends, within
     ``CONSENSUS_SIGMAS`` times the wire's own RMS residual, joins it as a measured point
@@ -821,8 +824,10 @@ def _consensus(
     a stretch at an image edge) a true primitive often cannot reach the posterior on its
     own, and the points of a wire have gaps that its curve spans. A wrong match lands on a
     confirmed curve, within a few centimetres, only by accident, and is then a measurement
-    of that wire all the same."""
-    pts = np.concatenate([p.pts_in_world for p in primitives])
+    of that wire all the same. ``pts``: the primitives' points, concatenated (when the
+    caller has them)."""
+    if pts is None:
+        pts = np.concatenate([p.pts_in_world for p in primitives])
     pair = np.concatenate([np.full(len(p), p.pair_index, np.int32) for p in primitives])
     free = np.ones(len(pts), bool)
     free[verified.primitive_index] = False

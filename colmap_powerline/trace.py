@@ -536,6 +536,7 @@ def primitive_reach(
         return None
     tree = cKDTree(primitives)
     longest = max(w.s_range[1] - w.s_range[0] for w in wires)
+    n_bins = int(np.ceil(longest / bin_len)) + 1
     reach_z = (max(abs(o) for o in MATCH_CONTROL_OFFSETS) + 1.0) * inlier
     reached = []
     for w in wires:
@@ -545,36 +546,32 @@ def primitive_reach(
             s = s0 + sign * np.arange(0.0, longest + bin_len, 0.5 * bin_len)
             near = tree.query_ball_point(w.points(s), r=reach_z + bin_len)
             idx = np.unique(np.concatenate([np.asarray(n, np.int64) for n in near]))
-            last = 0.0
-            if len(idx):
-                ps, across, dz = w.plane_coords(primitives[idx])
-                past = sign * (ps - s0)
-                inside = (past >= 0) & (np.abs(across) < inlier)
-                n_bins = int(np.ceil(longest / bin_len)) + 1
-                b = np.clip((past / bin_len).astype(np.int64), 0, n_bins - 1)
-
-                counts = np.stack(
-                    [
-                        np.bincount(
-                            b[inside & (np.abs(dz - o * inlier) < inlier)], minlength=n_bins
-                        )
-                        for o in (0.0, *MATCH_CONTROL_OFFSETS)
-                    ]
-                ).astype(np.float64)
-                on_curve, control = counts[0], counts[1:].mean(axis=0)
-                ok = (on_curve >= MIN_MATCHES) & (on_curve > MATCH_CHANCE_RATIO * control)
-                # The farthest match on the curve in each metre.
-                on = inside & (np.abs(dz) < inlier)
-                farthest = np.zeros(n_bins)
-                np.maximum.at(farthest, b[on], past[on])
-                # Walk out while the metres continue it (one short metre let pass).
-                k, miss = 0, 0
-                while k < n_bins and miss <= 1:
-                    if ok[k]:
-                        last, miss = float(farthest[k]), 0
-                    else:
-                        miss += 1
-                    k += 1
+            ps, across, dz = w.plane_coords(primitives[idx])
+            past = sign * (ps - s0)
+            inside = (past >= 0) & (np.abs(across) < inlier)
+            b = np.clip((past / bin_len).astype(np.int64), 0, n_bins - 1)
+            on = inside & (np.abs(dz) < inlier)
+            on_curve = np.bincount(b[on], minlength=n_bins)
+            control = np.mean(
+                [
+                    np.bincount(b[inside & (np.abs(dz - o * inlier) < inlier)], minlength=n_bins)
+                    for o in MATCH_CONTROL_OFFSETS
+                ],
+                axis=0,
+            )
+            ok = (on_curve >= MIN_MATCHES) & (on_curve > MATCH_CHANCE_RATIO * control)
+            # The farthest match on the curve in each metre.
+            farthest = np.zeros(n_bins)
+            np.maximum.at(farthest, b[on], past[on])
+            # Walk out while the metres continue it (one short metre let pass).
+            last, miss = 0.0, 0
+            for k in range(n_bins):
+                if ok[k]:
+                    last, miss = float(farthest[k]), 0
+                else:
+                    miss += 1
+                    if miss > 1:
+                        break
             reached.append(float(w.points(np.array([s0 + sign * last]))[0, :2] @ along))
     return (min(reached), max(reached))
 

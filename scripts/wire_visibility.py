@@ -77,12 +77,12 @@ def main(argv: list[str] | None = None) -> int:
     shape = (cam.height, cam.width)
     seen = []
     for image in rec.images.values():
-        conductors, _, _ = conductor_pixels(rec, image, wires, shape, args.kind)
-        seen.append((sum(len(c) for c in conductors), image.name, image))
+        projected = conductor_pixels(rec, image, wires, shape, args.kind)
+        seen.append((sum(len(c) for c in projected[0]), image.name, projected))
     seen.sort(key=lambda s: -s[0])
     table: dict[int, list[tuple[float, float, float]]] = {n: [] for n in args.lengths}
     used = []
-    for n_px, name, image in seen[: args.images]:
+    for n_px, name, (conductors, drawn, direction) in seen[: args.images]:
         if n_px == 0:
             break
         used.append(name)
@@ -90,7 +90,6 @@ def main(argv: list[str] | None = None) -> int:
         if gray is None:
             print(f"{args.scene / 'images' / name}: cannot be read")
             return 2
-        conductors, drawn, direction = conductor_pixels(rec, image, wires, shape, args.kind)
         far = cv2.dilate(drawn, np.ones((41, 41), np.uint8)) == 0
         pix = np.round(np.concatenate(conductors)).astype(int)
         for length in args.lengths:
