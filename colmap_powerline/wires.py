@@ -69,24 +69,35 @@ def fit_catenary(
         raise ValueError(f"{s.shape=} and {z.shape=} must be equal (N,)")
     if len(s) < 3:
         raise ValueError(f"need at least 3 points to fit a catenary, got {len(s)}")
-    coef = np.polyfit(s, z, 2)
-    curv = max(2 * coef[0], 1e-7)
-    s0 = -coef[1] / (2 * coef[0]) if coef[0] > 1e-9 else float(np.mean(s))
-    s0 = float(np.clip(s0, s.min() - 1e4, s.max() + 1e4))
-    z0 = float(np.polyval(coef, s0)) if coef[0] > 1e-9 else float(np.min(z))
-    k_max = 0.05
+    # Fitted as the height z_m and the slope sinh(A) at the middle of the samples and the
+    # curvature k = 1 / a at the lowest point: unlike (k, s0, z0), a short or nearly straight
+    # piece is well conditioned (its lowest point, far away, is not pinned down).
+    s_m = float(np.mean(s))
+    d = s - s_m
+    c2, c1, c0 = np.polyfit(d, z, 2)
+    k_min, k_max, a_max = 1e-7, 0.05, 1.0
+
+    def model(x: F64) -> F64:
+        k, a, z_m = x
+        half = np.sinh(k * d / 2)
+        return z_m + 2 * np.sinh(a + k * d / 2) * half / k
 
     def residual(x: F64) -> F64:
-        return _catenary(s, x[0], x[1], x[2]) - z
+        return model(x) - z
 
-    x0 = np.array([min(curv, k_max * 0.99), s0, z0])
-    lo = [1e-7, s.min() - 1e4, -np.inf]
-    hi = [k_max, s.max() + 1e4, np.inf]
-    x0 = np.clip(x0, np.array(lo) + 1e-12, np.array(hi) - 1e-12)
+    a0 = float(np.clip(np.arcsinh(c1), -a_max * 0.99, a_max * 0.99))
+    k0 = float(np.clip(2 * c2 / np.cosh(a0), k_min * 1.01, k_max * 0.99))
     sol = least_squares(
-        residual, x0, bounds=(lo, hi), loss=loss, f_scale=f_scale, x_scale=[1e-3, 10.0, 1.0]
+        residual,
+        np.array([k0, a0, c0]),
+        bounds=([k_min, -a_max, -np.inf], [k_max, a_max, np.inf]),
+        loss=loss,
+        f_scale=f_scale,
+        x_scale=[1e-3, 0.1, 1.0],
     )
-    k, s0, z0 = sol.x
+    k, a, z_m = sol.x
+    s0 = s_m - a / k
+    z0 = z_m - (np.cosh(a) - 1) / k
     return float(1.0 / k), float(s0), float(z0), residual(sol.x)
 
 
@@ -219,6 +230,56 @@ def _fit(pts: F64, idx: I64, azimuth_xy: F64, options: WiresOptions) -> FittedWi
     )
 
 
+def _densest_band(pts: F64, idx: I64, fit: FittedWire, options: WiresOptions) -> I64:
+    """The points of ``idx`` in the densest band beside ``fit`` (a curve parallel to it,
+    within the inlier distance), found in a histogram of their offsets from it."""
+    _, across, dz = fit.plane_coords(pts[idx])
+    cell = options.inlier_distance / 2
+    cells = np.floor(np.c_[across, dz] / cell).astype(np.int64)
+    uniq, inverse, counts = np.unique(cells, axis=0, return_inverse=True, return_counts=True)
+    # Points in each occupied cell's 3 × 3 neighbourhood: the band is the fullest one.
+    near = cKDTree(uniq).query_ball_point(uniq, 1.0, p=np.inf)
+    best = int(np.argmax([counts[n].sum() for n in near]))
+    in_block = np.abs(cells - uniq[best]).max(axis=1) <= 1
+    centre = np.median(np.c_[across, dz][in_block], axis=0)
+    return idx[np.hypot(across - centre[0], dz - centre[1]) < options.inlier_distance]
+
+
+# A chain of voxels may hold more than one curve (a false pairing that runs beside a wire
+# along the whole span and touches it here and there joins their chains): curves are taken
+# from it one after the other, each from the points the previous ones left.
+MAX_CURVES_PER_CHAIN = 4
+# A fit through two such curves lies between them; it moves to the densest band beside it
+# and is fitted again, at most this many times (while that holds more points).
+MAX_BAND_STEPS = 3
+
+
+def _curves_of_chain(pts: F64, idx: I64, along: F64, options: WiresOptions) -> list[FittedWire]:
+    """The wires in one chain of voxels: the curve holding the most points, then the next
+    one among the rest, and so on."""
+    out: list[FittedWire] = []
+    rest = idx
+    for _ in range(MAX_CURVES_PER_CHAIN):
+        fit = _fit(pts, rest, along, options)
+        if fit is None:
+            break
+        for _ in range(MAX_BAND_STEPS):
+            band = _fit(pts, _densest_band(pts, rest, fit, options), along, options)
+            if band is None:
+                break
+            on = rest[band.distance(pts[rest]) < options.inlier_distance]
+            better = _fit(pts, on, along, options)
+            if better is None or len(better.point_indices) <= len(fit.point_indices):
+                break
+            fit = better
+        if fit.rms_residual <= options.max_rms:
+            out.append(fit)
+        rest = np.setdiff1d(rest, fit.point_indices)
+        if len(rest) < options.min_points:
+            break
+    return out
+
+
 def nearest_wire(
     wires: list[FittedWire], pts: F64, reach: float, tolerance: F64
 ) -> npt.NDArray[np.int64]:
@@ -324,7 +385,9 @@ def merge_pieces(
                 # Only pieces near one vertical plane are worth a joint fit (a shortcut: the
                 # joint fit decides).
                 _, across, _ = a.plane_coords(b.points(np.array(b.s_range)))
-                if np.abs(across).max() > MERGE_PLANE_REACH:
+                if np.abs(across).max() > MERGE_PLANE_REACH or _apart_where_both_are(
+                    a, b, pts_in_world, options
+                ):
                     continue
                 idx = np.r_[a.point_indices, b.point_indices]
                 fit = _fit(pts_in_world, idx, along, options)
@@ -350,6 +413,23 @@ def merge_pieces(
         while joined[k] in joined:
             joined[k] = joined[joined[k]]
     return out, joined
+
+
+def _apart_where_both_are(
+    a: FittedWire, b: FittedWire, pts_in_world: F64, options: WiresOptions
+) -> bool:
+    """Do two pieces lie apart all along a stretch where both hold points (more than
+    ``1 - MERGE_INLIER_SHARE`` of each)? One curve cannot then keep both: at each place it
+    passes within the inlier distance of one piece's points or of the other's, not both."""
+    lo, hi = max(a.s_range[0], b.s_range[0]), min(a.s_range[1], b.s_range[1])
+    if hi <= lo:
+        return False
+    for w in (a, b):
+        s = w.plane_coords(pts_in_world[w.point_indices])[0]
+        if np.mean((s >= lo) & (s <= hi)) <= 1 - MERGE_INLIER_SHARE:
+            return False
+    gap = b.distance(a.points(np.linspace(lo, hi, 9)))
+    return bool(gap.min() > 4 * options.inlier_distance)
 
 
 # Pieces are one wire when one catenary keeps at least this share of the points of each.
@@ -428,11 +508,8 @@ def split_wires(
     pieces: list[FittedWire] = []
     for k in range(n_comp):
         idx = order[bounds[k] : bounds[k + 1]]
-        if len(idx) < options.min_points:
-            continue
-        fit = _fit(pts, idx, along, options)
-        if fit is not None and fit.rms_residual <= options.max_rms:
-            pieces.append(fit)
+        if len(idx) >= options.min_points:
+            pieces += _curves_of_chain(pts, idx, along, options)
 
     # Merge pieces of the same wire (gaps, duplicates from several pairs), then refit.
     n = len(pieces)
