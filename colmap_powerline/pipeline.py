@@ -789,20 +789,42 @@ def _without_untraced(
     wires: list[FittedWire], supports: list[WireSupport]
 ) -> tuple[list[FittedWire], list[WireSupport]]:
     """The wires without those the views would fix but do not find (traced share below
-    ``MIN_TRACED_SHARE``), renumbered from 0."""
+    ``MIN_TRACED_SHARE``), and without those no view can tell from a false pairing (no
+    crossing view) that the views can fix nowhere apart from the other wires (no traced
+    share): renumbered from 0."""
+
+    def unfixed(s: WireSupport) -> bool:
+        # Where only two strips see the wires, a pairing of two lines that other wires or
+        # their shadows draw lies, in one strip or the other, on those lines all along: no
+        # place of it is seen by views that tell it from them. On the shared generator's
+        # two-strip flights every false wire was such a one and every conductor was fixed
+        # at 87-100 % of its places.
+        return s.traced_share is None and s.crossing_views == 0
+
     kept = [
         k
         for k, s in enumerate(supports)
-        if s.traced_share is None or s.traced_share >= MIN_TRACED_SHARE
+        if (s.traced_share is None or s.traced_share >= MIN_TRACED_SHARE) and not unfixed(s)
     ]
     for k in sorted(set(range(len(wires))) - set(kept)):
+        w, s = wires[k], supports[k]
+        if unfixed(s):
+            logger.info(
+                "trace: wire %d dropped (%.0f m at %.1f above the ground): no view can tell "
+                "it from a false pairing and the views fix it nowhere apart from the other "
+                "wires (a pairing of lines other wires or their shadows draw)",
+                w.wire_id,
+                w.s_range[1] - w.s_range[0],
+                s.height_above_ground,
+            )
+            continue
         logger.info(
             "trace: wire %d dropped (%.0f m at %.1f above the ground): the views that would "
             "fix it find a wire at %.0f %% of its places (a false pairing)",
-            wires[k].wire_id,
-            wires[k].s_range[1] - wires[k].s_range[0],
-            supports[k].height_above_ground,
-            100 * (supports[k].traced_share or 0.0),
+            w.wire_id,
+            w.s_range[1] - w.s_range[0],
+            s.height_above_ground,
+            100 * (s.traced_share or 0.0),
         )
     return (
         [dataclasses.replace(wires[k], wire_id=i) for i, k in enumerate(kept)],

@@ -121,11 +121,13 @@ def test_trace_options_are_checked():
         TraceOptions(step_px=float("nan"))
 
 
-def _support(wire_id: int, confidence: float | None, traced_share: float | None = None):
+def _support(
+    wire_id: int, confidence: float | None, traced_share: float | None = None, crossing: int = 4
+):
     from colmap_powerline.support import WireSupport
 
     return WireSupport(
-        wire_id=wire_id, views=8, strips=3, crossing_views=4, hit_rate=0.3,
+        wire_id=wire_id, views=8, strips=3, crossing_views=crossing, hit_rate=0.3,
         crossing_hit_rate=0.3, chance=0.1, confidence=confidence, geometry="strong",
         height_above_ground=20.0, traced_share=traced_share,
     )  # fmt: skip
@@ -141,6 +143,11 @@ def test_wires_the_views_would_fix_but_do_not_find_are_dropped(conductors):
     assert [w.wire_id for w in kept] == [0, 1]
     assert [s.traced_share for s in kept_sup] == [0.9, None]
     assert kept[1].z0 == wires[2].z0
+    # Two strips only (no crossing view): one the views fix nowhere apart from the other
+    # wires goes; one they fix and find stays.
+    sup = [_support(0, 1.0, 0.9, crossing=0), _support(1, 1.0, None, crossing=0)]
+    kept, kept_sup = _without_untraced(wires[:2], sup)
+    assert [s.traced_share for s in kept_sup] == [0.9] and kept[0].z0 == wires[0].z0
 
 
 def test_a_rejected_wire_the_views_find_gets_a_second_look(small_scene, conductors):
