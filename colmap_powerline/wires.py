@@ -246,37 +246,70 @@ def _densest_band(pts: F64, idx: I64, fit: FittedWire, options: WiresOptions) ->
 
 
 # A chain of voxels may hold more than one curve (a false pairing that runs beside a wire
-# along the whole span and touches it here and there joins their chains): curves are taken
-# from it one after the other, each from the points the previous ones left.
-MAX_CURVES_PER_CHAIN = 4
+# along the whole span and touches it here and there joins their chains): where the points
+# a curve leaves still form chains, each gives its own curve, to this depth. (Points left
+# scattered form no chain: taking curves from them would make wires of clutter.)
+MAX_CURVES_DEPTH = 3
 # A fit through two such curves lies between them; it moves to the densest band beside it
 # and is fitted again, at most this many times (while that holds more points).
 MAX_BAND_STEPS = 3
 
 
-def _curves_of_chain(pts: F64, idx: I64, along: F64, options: WiresOptions) -> list[FittedWire]:
-    """The wires in one chain of voxels: the curve holding the most points, then the next
-    one among the rest, and so on."""
-    out: list[FittedWire] = []
-    rest = idx
-    for _ in range(MAX_CURVES_PER_CHAIN):
-        fit = _fit(pts, rest, along, options)
-        if fit is None:
+def _voxel_cells(pts: F64, along: F64, options: WiresOptions) -> npt.NDArray[np.int64]:
+    """(N, 3) each point's voxel: coarse along the line, fine across and in height."""
+    normal = np.array([along[1], -along[0]])
+    s, c, z = pts[:, :2] @ along, pts[:, :2] @ normal, pts[:, 2]
+    cells = np.floor(
+        np.c_[s / options.voxel_along, c / options.voxel_across, z / options.voxel_across]
+    ).astype(np.int64)
+    return cells - cells.min(axis=0)
+
+
+def _chains(cells: npt.NDArray[np.int64], idx: I64, options: WiresOptions) -> list[I64]:
+    """The points ``idx`` grouped into chains of neighbouring voxels, those of at least
+    ``min_points``."""
+    vox, inverse = np.unique(cells[idx], axis=0, return_inverse=True)
+    inverse = inverse.ravel()
+    scaled = vox / np.array([options.link_along_cells, options.link_cells, options.link_cells])
+    pairs = cKDTree(scaled).query_pairs(1.0 + 1e-9, p=np.inf, output_type="ndarray")
+    graph = coo_matrix(
+        (np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(len(vox), len(vox))
+    )
+    n_comp, comp_of_vox = connected_components(graph, directed=False)
+    comp = comp_of_vox[inverse]
+    order = np.argsort(comp, kind="stable")
+    bounds = np.searchsorted(comp[order], np.arange(n_comp + 1))
+    chains = [idx[order[bounds[k] : bounds[k + 1]]] for k in range(n_comp)]
+    return [c for c in chains if len(c) >= options.min_points]
+
+
+def _curves_of_chain(
+    pts: F64,
+    cells: npt.NDArray[np.int64],
+    idx: I64,
+    along: F64,
+    options: WiresOptions,
+    depth: int | None = 0,
+) -> list[FittedWire]:
+    """The wires in one chain of voxels: the curve holding the most points, then, in each
+    chain that the points it leaves still form, the same again (depth None: not)."""
+    fit = _fit(pts, idx, along, options)
+    if fit is None:
+        return []
+    for _ in range(MAX_BAND_STEPS):
+        band = _fit(pts, _densest_band(pts, idx, fit, options), along, options)
+        if band is None:
             break
-        for _ in range(MAX_BAND_STEPS):
-            band = _fit(pts, _densest_band(pts, rest, fit, options), along, options)
-            if band is None:
-                break
-            on = rest[band.distance(pts[rest]) < options.inlier_distance]
-            better = _fit(pts, on, along, options)
-            if better is None or len(better.point_indices) <= len(fit.point_indices):
-                break
-            fit = better
-        if fit.rms_residual <= options.max_rms:
-            out.append(fit)
-        rest = np.setdiff1d(rest, fit.point_indices)
-        if len(rest) < options.min_points:
+        on = idx[band.distance(pts[idx]) < options.inlier_distance]
+        better = _fit(pts, on, along, options)
+        if better is None or len(better.point_indices) <= len(fit.point_indices):
             break
+        fit = better
+    out = [fit] if fit.rms_residual <= options.max_rms else []
+    if depth is not None and depth + 1 < MAX_CURVES_DEPTH:
+        rest = np.setdiff1d(idx, fit.point_indices)
+        for chain in _chains(cells, rest, options):
+            out += _curves_of_chain(pts, cells, chain, along, options, depth + 1)
     return out
 
 
@@ -464,7 +497,10 @@ def estimate_azimuth(pts: F64) -> float:
 
 
 def split_wires(
-    pts_in_world: F64, azimuth_deg: float | None = None, options: WiresOptions | None = None
+    pts_in_world: F64,
+    azimuth_deg: float | None = None,
+    options: WiresOptions | None = None,
+    nested: bool = True,
 ) -> list[FittedWire]:
     """Split verified points into individual wires and fit each.
 
@@ -472,6 +508,8 @@ def split_wires(
         pts_in_world: (N, 3) verified wire points.
         azimuth_deg: the line's horizontal direction (clockwise from +y); None: from the points.
         options: clustering, fitting and merging options.
+        nested: also the curves in the chains that the points a chain's curve leaves still
+            form (False: one curve per chain, where clutter must not add wire length).
 
     Returns:
         The wires, numbered from 0, ordered across the line then by height.
@@ -487,29 +525,11 @@ def split_wires(
     az = np.deg2rad(azimuth_deg)
     along = np.array([np.sin(az), np.cos(az)])
     normal = np.array([along[1], -along[0]])
-    s, c, z = pts[:, :2] @ along, pts[:, :2] @ normal, pts[:, 2]
 
-    # Voxel chains: coarse along the line, fine across and in height.
-    cells = np.floor(
-        np.c_[s / options.voxel_along, c / options.voxel_across, z / options.voxel_across]
-    ).astype(np.int64)
-    cells -= cells.min(axis=0)
-    vox, inverse, counts = np.unique(cells, axis=0, return_inverse=True, return_counts=True)
-    inverse = inverse.ravel()
-    scaled = vox / np.array([options.link_along_cells, options.link_cells, options.link_cells])
-    pairs = cKDTree(scaled).query_pairs(1.0 + 1e-9, p=np.inf, output_type="ndarray")
-    graph = coo_matrix(
-        (np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(len(vox), len(vox))
-    )
-    n_comp, comp_of_vox = connected_components(graph, directed=False)
-    comp = comp_of_vox[inverse]
-    order = np.argsort(comp, kind="stable")
-    bounds = np.searchsorted(comp[order], np.arange(n_comp + 1))
+    cells = _voxel_cells(pts, along, options)
     pieces: list[FittedWire] = []
-    for k in range(n_comp):
-        idx = order[bounds[k] : bounds[k + 1]]
-        if len(idx) >= options.min_points:
-            pieces += _curves_of_chain(pts, idx, along, options)
+    for idx in _chains(cells, np.arange(len(pts)), options):
+        pieces += _curves_of_chain(pts, cells, idx, along, options, 0 if nested else None)
 
     # Merge pieces of the same wire (gaps, duplicates from several pairs), then refit.
     n = len(pieces)
