@@ -224,7 +224,7 @@ def probe_corridor(scene: Scene, options: ReconstructionOptions) -> WireCorridor
             w
             # One curve per chain of points: the wire length measured is then that of the
             # clean chains (a probe across the line on the shared flight across counted
-            # 354 m of clutter against the line's 328 m when clutter chains gave several).
+            # 354 m of clutter against the line's 328 m when every chain gave several).
             for w in split_wires(verified.pts_in_world, azimuth, options.wires, nested=False)
             if height_above_ground(scene, w) >= options.triangulate.min_wire_height
         ]  # lines on the ground (roads, rows, shadows) triangulate too: they are not wires

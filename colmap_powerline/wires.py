@@ -246,10 +246,10 @@ def _densest_band(pts: F64, idx: I64, fit: FittedWire, options: WiresOptions) ->
 
 
 # A chain of voxels may hold more than one curve (a false pairing that runs beside a wire
-# along the whole span and touches it here and there joins their chains): where the points
-# a curve leaves still form chains, each gives its own curve, to this depth. (Points left
-# scattered form no chain: taking curves from them would make wires of clutter.)
-MAX_CURVES_DEPTH = 3
+# along the whole span and touches it here and there joins their chains): curves are taken
+# from it one after the other, each from the points the previous ones left, at most this
+# many.
+MAX_CURVES_PER_CHAIN = 4
 # A fit through two such curves lies between them; it moves to the densest band beside it
 # and is fitted again, at most this many times (while that holds more points).
 MAX_BAND_STEPS = 3
@@ -265,10 +265,10 @@ def _voxel_cells(pts: F64, along: F64, options: WiresOptions) -> npt.NDArray[np.
     return cells - cells.min(axis=0)
 
 
-def _chains(cells: npt.NDArray[np.int64], idx: I64, options: WiresOptions) -> list[I64]:
-    """The points ``idx`` grouped into chains of neighbouring voxels, those of at least
+def _chains(cells: npt.NDArray[np.int64], options: WiresOptions) -> list[I64]:
+    """The points grouped into chains of neighbouring voxels, those of at least
     ``min_points``."""
-    vox, inverse = np.unique(cells[idx], axis=0, return_inverse=True)
+    vox, inverse = np.unique(cells, axis=0, return_inverse=True)
     inverse = inverse.ravel()
     scaled = vox / np.array([options.link_along_cells, options.link_cells, options.link_cells])
     pairs = cKDTree(scaled).query_pairs(1.0 + 1e-9, p=np.inf, output_type="ndarray")
@@ -279,37 +279,35 @@ def _chains(cells: npt.NDArray[np.int64], idx: I64, options: WiresOptions) -> li
     comp = comp_of_vox[inverse]
     order = np.argsort(comp, kind="stable")
     bounds = np.searchsorted(comp[order], np.arange(n_comp + 1))
-    chains = [idx[order[bounds[k] : bounds[k + 1]]] for k in range(n_comp)]
+    chains = [order[bounds[k] : bounds[k + 1]] for k in range(n_comp)]
     return [c for c in chains if len(c) >= options.min_points]
 
 
 def _curves_of_chain(
-    pts: F64,
-    cells: npt.NDArray[np.int64],
-    idx: I64,
-    along: F64,
-    options: WiresOptions,
-    depth: int | None = 0,
+    pts: F64, idx: I64, along: F64, options: WiresOptions, max_curves: int
 ) -> list[FittedWire]:
-    """The wires in one chain of voxels: the curve holding the most points, then, in each
-    chain that the points it leaves still form, the same again (depth None: not)."""
-    fit = _fit(pts, idx, along, options)
-    if fit is None:
-        return []
-    for _ in range(MAX_BAND_STEPS):
-        band = _fit(pts, _densest_band(pts, idx, fit, options), along, options)
-        if band is None:
+    """The wires in one chain of voxels: the curve holding the most points, then the next
+    one among the rest, and so on (at most ``max_curves``)."""
+    out: list[FittedWire] = []
+    rest = idx
+    for _ in range(max_curves):
+        fit = _fit(pts, rest, along, options)
+        if fit is None:
             break
-        on = idx[band.distance(pts[idx]) < options.inlier_distance]
-        better = _fit(pts, on, along, options)
-        if better is None or len(better.point_indices) <= len(fit.point_indices):
+        for _ in range(MAX_BAND_STEPS):
+            band = _fit(pts, _densest_band(pts, rest, fit, options), along, options)
+            if band is None:
+                break
+            on = rest[band.distance(pts[rest]) < options.inlier_distance]
+            better = _fit(pts, on, along, options)
+            if better is None or len(better.point_indices) <= len(fit.point_indices):
+                break
+            fit = better
+        if fit.rms_residual <= options.max_rms:
+            out.append(fit)
+        rest = np.setdiff1d(rest, fit.point_indices)
+        if len(rest) < options.min_points:
             break
-        fit = better
-    out = [fit] if fit.rms_residual <= options.max_rms else []
-    if depth is not None and depth + 1 < MAX_CURVES_DEPTH:
-        rest = np.setdiff1d(idx, fit.point_indices)
-        for chain in _chains(cells, rest, options):
-            out += _curves_of_chain(pts, cells, chain, along, options, depth + 1)
     return out
 
 
@@ -508,8 +506,8 @@ def split_wires(
         pts_in_world: (N, 3) verified wire points.
         azimuth_deg: the line's horizontal direction (clockwise from +y); None: from the points.
         options: clustering, fitting and merging options.
-        nested: also the curves in the chains that the points a chain's curve leaves still
-            form (False: one curve per chain, where clutter must not add wire length).
+        nested: also the further curves of a chain, from the points its first curve leaves
+            (False: one curve per chain, where clutter must not add wire length).
 
     Returns:
         The wires, numbered from 0, ordered across the line then by height.
@@ -528,8 +526,8 @@ def split_wires(
 
     cells = _voxel_cells(pts, along, options)
     pieces: list[FittedWire] = []
-    for idx in _chains(cells, np.arange(len(pts)), options):
-        pieces += _curves_of_chain(pts, cells, idx, along, options, 0 if nested else None)
+    for idx in _chains(cells, options):
+        pieces += _curves_of_chain(pts, idx, along, options, MAX_CURVES_PER_CHAIN if nested else 1)
 
     # Merge pieces of the same wire (gaps, duplicates from several pairs), then refit.
     n = len(pieces)
