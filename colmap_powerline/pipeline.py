@@ -222,10 +222,7 @@ def probe_corridor(scene: Scene, options: ReconstructionOptions) -> WireCorridor
         decoded += verified.decoded
         wires = [
             w
-            # One curve per chain of points: the wire length measured is then that of the
-            # clean chains (a probe across the line on the shared flight across counted
-            # 354 m of clutter against the line's 328 m when every chain gave several).
-            for w in split_wires(verified.pts_in_world, azimuth, options.wires, nested=False)
+            for w in split_wires(verified.pts_in_world, azimuth, options.wires)
             if height_above_ground(scene, w) >= options.triangulate.min_wire_height
         ]  # lines on the ground (roads, rows, shadows) triangulate too: they are not wires
         length = float(sum(w.s_range[1] - w.s_range[0] for w in wires))

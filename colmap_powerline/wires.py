@@ -230,31 +230,6 @@ def _fit(pts: F64, idx: I64, azimuth_xy: F64, options: WiresOptions) -> FittedWi
     )
 
 
-def _densest_band(pts: F64, idx: I64, fit: FittedWire, options: WiresOptions) -> I64:
-    """The points of ``idx`` in the densest band beside ``fit`` (a curve parallel to it,
-    within the inlier distance), found in a histogram of their offsets from it."""
-    _, across, dz = fit.plane_coords(pts[idx])
-    cell = options.inlier_distance / 2
-    cells = np.floor(np.c_[across, dz] / cell).astype(np.int64)
-    uniq, inverse, counts = np.unique(cells, axis=0, return_inverse=True, return_counts=True)
-    # Points in each occupied cell's 3 × 3 neighbourhood: the band is the fullest one.
-    near = cKDTree(uniq).query_ball_point(uniq, 1.0, p=np.inf)
-    best = int(np.argmax([counts[n].sum() for n in near]))
-    in_block = np.abs(cells - uniq[best]).max(axis=1) <= 1
-    centre = np.median(np.c_[across, dz][in_block], axis=0)
-    return idx[np.hypot(across - centre[0], dz - centre[1]) < options.inlier_distance]
-
-
-# A chain of voxels may hold more than one curve (a false pairing that runs beside a wire
-# along the whole span and touches it here and there joins their chains): curves are taken
-# from it one after the other, each from the points the previous ones left, at most this
-# many.
-MAX_CURVES_PER_CHAIN = 4
-# A fit through two such curves lies between them; it moves to the densest band beside it
-# and is fitted again, at most this many times (while that holds more points).
-MAX_BAND_STEPS = 3
-
-
 def _voxel_cells(pts: F64, along: F64, options: WiresOptions) -> npt.NDArray[np.int64]:
     """(N, 3) each point's voxel: coarse along the line, fine across and in height."""
     normal = np.array([along[1], -along[0]])
@@ -281,34 +256,6 @@ def _chains(cells: npt.NDArray[np.int64], options: WiresOptions) -> list[I64]:
     bounds = np.searchsorted(comp[order], np.arange(n_comp + 1))
     chains = [order[bounds[k] : bounds[k + 1]] for k in range(n_comp)]
     return [c for c in chains if len(c) >= options.min_points]
-
-
-def _curves_of_chain(
-    pts: F64, idx: I64, along: F64, options: WiresOptions, max_curves: int
-) -> list[FittedWire]:
-    """The wires in one chain of voxels: the curve holding the most points, then the next
-    one among the rest, and so on (at most ``max_curves``)."""
-    out: list[FittedWire] = []
-    rest = idx
-    for _ in range(max_curves):
-        fit = _fit(pts, rest, along, options)
-        if fit is None:
-            break
-        for _ in range(MAX_BAND_STEPS):
-            band = _fit(pts, _densest_band(pts, rest, fit, options), along, options)
-            if band is None:
-                break
-            on = rest[band.distance(pts[rest]) < options.inlier_distance]
-            better = _fit(pts, on, along, options)
-            if better is None or len(better.point_indices) <= len(fit.point_indices):
-                break
-            fit = better
-        if fit.rms_residual <= options.max_rms:
-            out.append(fit)
-        rest = np.setdiff1d(rest, fit.point_indices)
-        if len(rest) < options.min_points:
-            break
-    return out
 
 
 def nearest_wire(
@@ -498,7 +445,6 @@ def split_wires(
     pts_in_world: F64,
     azimuth_deg: float | None = None,
     options: WiresOptions | None = None,
-    nested: bool = True,
 ) -> list[FittedWire]:
     """Split verified points into individual wires and fit each.
 
@@ -506,8 +452,6 @@ def split_wires(
         pts_in_world: (N, 3) verified wire points.
         azimuth_deg: the line's horizontal direction (clockwise from +y); None: from the points.
         options: clustering, fitting and merging options.
-        nested: also the further curves of a chain, from the points its first curve leaves
-            (False: one curve per chain, where clutter must not add wire length).
 
     Returns:
         The wires, numbered from 0, ordered across the line then by height.
@@ -527,7 +471,9 @@ def split_wires(
     cells = _voxel_cells(pts, along, options)
     pieces: list[FittedWire] = []
     for idx in _chains(cells, options):
-        pieces += _curves_of_chain(pts, idx, along, options, MAX_CURVES_PER_CHAIN if nested else 1)
+        fit = _fit(pts, idx, along, options)
+        if fit is not None and fit.rms_residual <= options.max_rms:
+            pieces.append(fit)
 
     # Merge pieces of the same wire (gaps, duplicates from several pairs), then refit.
     n = len(pieces)

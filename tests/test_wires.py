@@ -84,30 +84,6 @@ def test_split_separates_stacked_and_side_by_side_wires(truth):
     assert matched == {t.wire_id for t in truth}
 
 
-def test_a_false_band_beside_a_wire_does_not_hide_it(truth):
-    # Two strips' false pairing runs 1 m above a conductor and 0.3 m beside it along the whole
-    # span, as many points as the wire; where the two meet (by the supports) their voxel
-    # chains join. Both curves come out (the false one is for the views to judge).
-    rng = np.random.default_rng(3)
-    w = truth[0]
-    s = np.arange(2.0, w.length_m - 2.0, 0.03)
-    wire = w.points(s) + rng.normal(0, 0.02, (len(s), 3))
-    side = np.array([w.direction_xy[1], -w.direction_xy[0], 0.0])
-    band = w.points(s) + 0.3 * side + [0, 0, 1.0] + rng.normal(0, 0.02, (len(s), 3))
-    # Bridges between them at both ends, as the two meet near the supports.
-    t = rng.uniform(0, 1, 400)[:, None]
-    ends = np.r_[np.arange(0, 60), np.arange(len(s) - 60, len(s))]
-    k = rng.choice(ends, 400)
-    bridge = (1 - t) * wire[k] + t * band[k]
-    fits = split_wires(np.concatenate([wire, band, bridge]), 35.0)
-    # Height of each fitted curve above the true wire.
-    near = [float(np.median(-f.plane_coords(w.points(s[::50]))[2])) for f in fits]
-    assert min(np.abs(near)) < 0.02  # the wire
-    assert any(abs(d - 1.0) < 0.05 for d in near)  # and the band, each on its own
-    best = fits[int(np.argmin(np.abs(near)))]
-    assert best.s_range[1] - best.s_range[0] > 0.9 * (s[-1] - s[0])
-
-
 def test_short_sloping_piece_is_fitted_closely():
     # 8 m of a wire 40 m from its lowest point: the lowest point is far and ill-determined,
     # the curve over the piece is not.
