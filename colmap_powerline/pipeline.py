@@ -797,8 +797,9 @@ def _without_untraced(
         # Where only two strips see the wires, a pairing of two lines that other wires or
         # their shadows draw lies, in one strip or the other, on those lines all along: no
         # place of it is seen by views that tell it from them. On the shared generator's
-        # two-strip flights every false wire was such a one and every conductor was fixed
-        # at 87-100 % of its places.
+        # two-strip flights (mixed seed 2; vegetation seeds 2-3 with a trial split) every
+        # false wire but two was such a one and every conductor was fixed at 87-100 % of
+        # its places.
         return s.traced_share is None and s.crossing_views == 0
 
     kept = [
