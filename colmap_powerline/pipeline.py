@@ -809,23 +809,19 @@ def _without_untraced(
     ]
     for k in sorted(set(range(len(wires))) - set(kept)):
         w, s = wires[k], supports[k]
-        if unfixed(s):
-            logger.info(
-                "trace: wire %d dropped (%.0f m at %.1f above the ground): no view can tell "
-                "it from a false pairing and the views fix it nowhere apart from the other "
-                "wires (a pairing of lines other wires or their shadows draw)",
-                w.wire_id,
-                w.s_range[1] - w.s_range[0],
-                s.height_above_ground,
-            )
-            continue
+        why = (
+            "no view can tell it from a false pairing and the views fix it nowhere apart from "
+            "the other wires (a pairing of lines other wires or their shadows draw)"
+            if unfixed(s)
+            else f"the views that would fix it find a wire at {100 * (s.traced_share or 0.0):.0f} "
+            "% of its places (a false pairing)"
+        )
         logger.info(
-            "trace: wire %d dropped (%.0f m at %.1f above the ground): the views that would "
-            "fix it find a wire at %.0f %% of its places (a false pairing)",
+            "trace: wire %d dropped (%.0f m at %.1f above the ground): %s",
             w.wire_id,
             w.s_range[1] - w.s_range[0],
             s.height_above_ground,
-            100 * (s.traced_share or 0.0),
+            why,
         )
     return (
         [dataclasses.replace(wires[k], wire_id=i) for i, k in enumerate(kept)],

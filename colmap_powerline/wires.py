@@ -230,34 +230,6 @@ def _fit(pts: F64, idx: I64, azimuth_xy: F64, options: WiresOptions) -> FittedWi
     )
 
 
-def _voxel_cells(pts: F64, along: F64, options: WiresOptions) -> npt.NDArray[np.int64]:
-    """(N, 3) each point's voxel: coarse along the line, fine across and in height."""
-    normal = np.array([along[1], -along[0]])
-    s, c, z = pts[:, :2] @ along, pts[:, :2] @ normal, pts[:, 2]
-    cells = np.floor(
-        np.c_[s / options.voxel_along, c / options.voxel_across, z / options.voxel_across]
-    ).astype(np.int64)
-    return cells - cells.min(axis=0)
-
-
-def _chains(cells: npt.NDArray[np.int64], options: WiresOptions) -> list[I64]:
-    """The points grouped into chains of neighbouring voxels, those of at least
-    ``min_points``."""
-    vox, inverse = np.unique(cells, axis=0, return_inverse=True)
-    inverse = inverse.ravel()
-    scaled = vox / np.array([options.link_along_cells, options.link_cells, options.link_cells])
-    pairs = cKDTree(scaled).query_pairs(1.0 + 1e-9, p=np.inf, output_type="ndarray")
-    graph = coo_matrix(
-        (np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(len(vox), len(vox))
-    )
-    n_comp, comp_of_vox = connected_components(graph, directed=False)
-    comp = comp_of_vox[inverse]
-    order = np.argsort(comp, kind="stable")
-    bounds = np.searchsorted(comp[order], np.arange(n_comp + 1))
-    chains = [order[bounds[k] : bounds[k + 1]] for k in range(n_comp)]
-    return [c for c in chains if len(c) >= options.min_points]
-
-
 def nearest_wire(
     wires: list[FittedWire], pts: F64, reach: float, tolerance: F64
 ) -> npt.NDArray[np.int64]:
@@ -442,9 +414,7 @@ def estimate_azimuth(pts: F64) -> float:
 
 
 def split_wires(
-    pts_in_world: F64,
-    azimuth_deg: float | None = None,
-    options: WiresOptions | None = None,
+    pts_in_world: F64, azimuth_deg: float | None = None, options: WiresOptions | None = None
 ) -> list[FittedWire]:
     """Split verified points into individual wires and fit each.
 
@@ -467,10 +437,29 @@ def split_wires(
     az = np.deg2rad(azimuth_deg)
     along = np.array([np.sin(az), np.cos(az)])
     normal = np.array([along[1], -along[0]])
+    s, c, z = pts[:, :2] @ along, pts[:, :2] @ normal, pts[:, 2]
 
-    cells = _voxel_cells(pts, along, options)
+    # Voxel chains: coarse along the line, fine across and in height.
+    cells = np.floor(
+        np.c_[s / options.voxel_along, c / options.voxel_across, z / options.voxel_across]
+    ).astype(np.int64)
+    cells -= cells.min(axis=0)
+    vox, inverse, counts = np.unique(cells, axis=0, return_inverse=True, return_counts=True)
+    inverse = inverse.ravel()
+    scaled = vox / np.array([options.link_along_cells, options.link_cells, options.link_cells])
+    pairs = cKDTree(scaled).query_pairs(1.0 + 1e-9, p=np.inf, output_type="ndarray")
+    graph = coo_matrix(
+        (np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(len(vox), len(vox))
+    )
+    n_comp, comp_of_vox = connected_components(graph, directed=False)
+    comp = comp_of_vox[inverse]
+    order = np.argsort(comp, kind="stable")
+    bounds = np.searchsorted(comp[order], np.arange(n_comp + 1))
     pieces: list[FittedWire] = []
-    for idx in _chains(cells, options):
+    for k in range(n_comp):
+        idx = order[bounds[k] : bounds[k + 1]]
+        if len(idx) < options.min_points:
+            continue
         fit = _fit(pts, idx, along, options)
         if fit is not None and fit.rms_residual <= options.max_rms:
             pieces.append(fit)
