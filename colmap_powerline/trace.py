@@ -57,7 +57,7 @@ from .verify import (
     _wire_offsets,
     image_wire_direction_deg,
 )
-from .wires import FittedWire, WiresOptions, _catenary, refit
+from .wires import FittedWire, WiresOptions, _catenary, catenary_mid, refit
 
 logger = logging.getLogger(__name__)
 
@@ -472,16 +472,23 @@ def _prediction_sigma(wire: FittedWire, pts: F64, s: F64, corr: float) -> tuple[
     cov_a = np.linalg.pinv(x.T @ x) * float(np.var(acr) * n / max(n - 2, 1)) * corr
     g = np.c_[np.ones(len(s)), s]
     sig_a = np.sqrt(np.abs(np.einsum("ni,ij,nj->n", g, cov_a, g)))
-    # Height: the catenary's (k, s0, z0), by central differences.
-    theta = np.array([1.0 / wire.catenary_a, wire.s0, wire.z0])
-    steps = np.array([max(theta[0] * 1e-3, 1e-9), 1e-3, 1e-3])
+    # Height: the catenary's curvature, slope and height at the middle of the points, by
+    # central differences (unlike (k, s0, z0), well conditioned on a short or straight piece,
+    # whose lowest point is far off).
+    s_m = float(np.mean(sp))
+    k = 1.0 / wire.catenary_a
+    theta = np.array(
+        [k, k * (s_m - wire.s0), float(_catenary(np.array([s_m]), k, wire.s0, wire.z0)[0])]
+    )
+    steps = np.array([1e-6, 1e-4, 1e-3])
 
     def jac(t: F64) -> F64:
         cols = []
         for i in range(3):
             d = np.zeros(3)
             d[i] = steps[i]
-            cols.append((_catenary(t, *(theta + d)) - _catenary(t, *(theta - d))) / (2 * steps[i]))
+            hi, lo = theta + d, theta - d
+            cols.append((catenary_mid(t - s_m, *hi) - catenary_mid(t - s_m, *lo)) / (2 * steps[i]))
         return np.stack(cols, axis=1)
 
     j = jac(sp)

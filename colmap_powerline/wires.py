@@ -56,6 +56,16 @@ def _catenary(s: F64, k: float, s0: float, z0: float) -> F64:
     return z0 + np.where(np.abs(u) < 1e-3, small, big)
 
 
+def catenary_mid(d: F64, k: float, a: float, z_m: float) -> F64:
+    """The catenary by its height ``z_m`` and slope ``sinh(a)`` at ``d = 0`` and its
+    curvature ``k`` at the lowest point: ``z_m + 2 sinh(a + k d / 2) sinh(k d / 2) / k``
+    (any k, also 0 and below: a short or nearly straight piece stays well conditioned)."""
+    x = k * np.asarray(d, np.float64) / 2
+    with np.errstate(over="ignore", invalid="ignore"):
+        shc = np.where(np.abs(x) < 1e-4, 1 + x**2 / 6, np.sinh(x) / np.where(x == 0, 1, x))
+    return z_m + d * np.sinh(a + x) * shc
+
+
 def fit_catenary(
     s: F64, z: F64, f_scale: float = 0.03, loss: str = "soft_l1"
 ) -> tuple[float, float, float, F64]:
@@ -77,13 +87,8 @@ def fit_catenary(
     c2, c1, c0 = np.polyfit(d, z, 2)
     k_min, k_max, a_max = 1e-7, 0.05, 1.0
 
-    def model(x: F64) -> F64:
-        k, a, z_m = x
-        half = np.sinh(k * d / 2)
-        return z_m + 2 * np.sinh(a + k * d / 2) * half / k
-
     def residual(x: F64) -> F64:
-        return model(x) - z
+        return catenary_mid(d, x[0], x[1], x[2]) - z
 
     a0 = float(np.clip(np.arcsinh(c1), -a_max * 0.99, a_max * 0.99))
     k0 = float(np.clip(2 * c2 / np.cosh(a0), k_min * 1.01, k_max * 0.99))

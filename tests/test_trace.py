@@ -208,7 +208,7 @@ def test_points_past_a_support_leave_the_curve_continued():
     pts = _catenary_points(s_fit, 30.0, 0.0, rng)
     wire = _fit(pts, np.arange(len(pts)), np.array([1.0, 0.0]), WiresOptions())
     assert wire is not None
-    s_new = np.arange(40.0, 45.0, 0.025)
+    s_new = np.arange(40.0, 46.0, 0.025)
     sigma = np.full(len(s_new), 0.02)
     same = _catenary_points(s_new, 30.0, 0.0, rng)
     assert _leaves_curve(wire, pts, same, sigma, 10.0) < MAX_BEND
@@ -220,6 +220,27 @@ def test_points_past_a_support_leave_the_curve_continued():
     turned = same.copy()
     turned[:, 1] = (s_new - 40.0) * np.tan(np.radians(10.0)) + rng.normal(0, 0.02, len(s_new))
     assert _leaves_curve(wire, pts, turned, sigma, 10.0) > MAX_BEND
+
+
+@pytest.mark.parametrize("seed", [4, 5])
+def test_a_short_straight_piece_is_continued_along_its_own_curve(seed):
+    """A 6 m piece of a shield wire (a = 1000 m, 40 m from its lowest point) fits as a
+    straight line (its curvature is not measurable over 6 m: with these seeds the fit's
+    curvature goes to its bound); the wire continued 5 m past its end stays within two of
+    the curve's predicted errors, and 50 cm above it is far outside. The error is propagated
+    through the curve's height, slope and curvature at the middle of the piece: through
+    (a, s0, z0), with the lowest point 10^5 m off, it was near singular (2.2-3.9 errors on
+    the true curve, 43 at 30 cm), and tracing stopped the shield wire of the shared cross
+    seed 1 after one round (5 m of it instead of 24)."""
+    rng = np.random.default_rng(seed)
+    pts = _catenary_points(np.arange(40.0, 46.0, 0.025), 0.0, 30.0, rng, a=1000.0)
+    wire = _fit(pts, np.arange(len(pts)), np.array([1.0, 0.0]), WiresOptions())
+    assert wire is not None and wire.catenary_a > 1e6
+    s_new = np.arange(46.0, 51.0, 0.025)
+    same = _catenary_points(s_new, 0.0, 30.0, rng, a=1000.0)
+    sigma = np.full(len(s_new), 0.02)
+    assert _leaves_curve(wire, pts, same, sigma, 10.0) < 2.0
+    assert _leaves_curve(wire, pts, same + [0, 0, 0.5], sigma, 10.0) > MAX_BEND
 
 
 def test_matches_continuing_a_wire_take_tracing_farther_along_the_line():
