@@ -760,6 +760,19 @@ def trace_wires(
                 ends.append((hi, min(hi + options.extend, last)))
             new_ranges.append(ends)
             new_wires[k] = fit
+            if round_ > 0:
+                logger.debug(
+                    "trace round %d, wire %d: %d of %d places measured; s %.1f..%.1f -> "
+                    "%.1f..%.1f, next %s",
+                    round_,
+                    w.wire_id,
+                    len(mine),
+                    int((places.wire == k).sum()),
+                    *w.s_range,
+                    lo,
+                    hi,
+                    [(round(a, 1), round(b, 1)) for a, b in ends],
+                )
         logger.info(
             "trace round %d: %d of %d places measured (%d seen by two views or more)",
             round_,
