@@ -415,6 +415,51 @@ def _kept(
     return solved & (sigma <= max_sigma) & (sol.n_views >= MIN_VIEWS) & checked, sigma
 
 
+# A place two views fix (a third would check them) is kept on a confirmed wire when its point
+# lies on the wire's curve within their joint error: the chi-square test at 99 % (2 dof).
+CURVE_CHI2 = float(chi2.ppf(0.99, 2))
+
+
+def _checked_by_curve(
+    sol: _Solution,
+    sigma: F64,
+    sigma_px: float,
+    max_sigma: float,
+    places: _Places,
+    wires: list[FittedWire],
+    all_pts: F64,
+    corr: float,
+) -> npt.NDArray[np.bool_]:
+    """The places fixed by exactly two views (well enough) whose point lies on its wire's
+    curve within the point's error and the curve's there (from the points it was fitted to,
+    ``corr`` neighbours counted as one), where the curve itself is known to ``max_sigma``:
+    the curve is the check a third view would give.
+    Near a support, where three views see a wire's end and one of them misses it, or where
+    only two views see it at all."""
+    two = (
+        np.isfinite(sol.x[:, 0])
+        & (sol.n_views == 2)
+        & (sigma <= max_sigma)
+        & (places.wire < places.n_traced)
+    )
+    out = np.zeros(len(two), bool)
+    for k in np.unique(places.wire[two]):
+        m = np.flatnonzero(two & (places.wire == k))
+        w = wires[k]
+        sig_a, sig_z = _prediction_sigma(
+            w, all_pts[w.point_indices], w.plane_coords(places.pts[m])[0], corr
+        )
+        cov = np.linalg.inv(sol.normal[m]) * sigma_px**2
+        cov[:, 0, 0] += sig_a**2
+        cov[:, 1, 1] += sig_z**2
+        x = sol.x[m]
+        # Only where the curve is known well enough to check (not far past a short piece).
+        out[m] = (np.einsum("ni,nij,nj->n", x, np.linalg.inv(cov), x) <= CURVE_CHI2) & (
+            np.hypot(sig_a, sig_z) <= max_sigma
+        )
+    return out
+
+
 def _measurable(sol: _Solution, sigma_px: float, max_sigma: float) -> npt.NDArray[np.bool_]:
     """The places the views would fix well enough had they all found the wire."""
     seen_ok = sol.seen >= MIN_VIEWS
@@ -721,6 +766,9 @@ def trace_wires(
                 ]
                 sol = _measure(obs, places, tolerance_px, bias, found[places.wire])
                 good, sigma = _kept(sol, sigma_px, max_sigma, min_redundancy)
+        if min_redundancy <= 0:
+            # On confirmed wires, a place two views fix is checked by the wire's curve.
+            good |= _checked_by_curve(sol, sigma, sigma_px, max_sigma, places, wires, all_pts, corr)
         x, n_views = sol.x, sol.n_views
         pts = places.pts + np.einsum("mi,mij->mj", np.where(good[:, None], x, 0.0), places.across)
         new_wires = list(wires)

@@ -17,7 +17,10 @@ from colmap_powerline.synthetic import TrueWire, load_true_wires
 from colmap_powerline.trace import (
     MAX_BEND,
     TraceOptions,
+    _checked_by_curve,
     _leaves_curve,
+    _places,
+    _Solution,
     primitive_reach,
     trace_wires,
 )
@@ -241,6 +244,41 @@ def test_a_short_straight_piece_is_continued_along_its_own_curve(seed):
     sigma = np.full(len(s_new), 0.02)
     assert _leaves_curve(wire, pts, same, sigma, 10.0) < 2.0
     assert _leaves_curve(wire, pts, same + [0, 0, 0.5], sigma, 10.0) > MAX_BEND
+
+
+def test_two_views_are_checked_by_the_curve_where_it_is_known():
+    """A place only two views fix has no check of its own: on a wire measured along 10 m it
+    is kept where its point lies on the curve within the joint error (1 cm off: kept; 20 cm
+    off: not), and not 10 m past the end, where the curve is no longer known to the
+    precision a point must have (10 cm there), however well the point lies on it."""
+    rng = np.random.default_rng(7)
+    pts = _catenary_points(np.arange(0.0, 10.0, 0.025), 30.0, 0.0, rng)
+    wire = _fit(pts, np.arange(len(pts)), np.array([1.0, 0.0]), WiresOptions())
+    assert wire is not None
+    places = _places(
+        [wire],
+        [
+            [(10.0, 11.0)],
+        ],
+        np.array([0.5]),
+        [],
+    )
+    far = _places([wire], [[(69.0, 70.0)]], np.array([0.5]), [])
+    assert places is not None and far is not None
+    m = len(places.pts)
+    # Two views 2 cm/px, 0.44 px noise: a point known to about 1 cm.
+    normal = np.tile(np.eye(2) * 2 * 50.0**2, (m, 1, 1))
+
+    def solution(offset: float) -> _Solution:
+        x = np.tile([offset, 0.0], (m, 1))
+        n2 = np.full(m, 2, np.int32)
+        return _Solution(x, np.zeros(m), n2, normal, np.zeros(m), n2, normal)
+
+    sigma = np.full(m, 0.01)
+    args = (0.44, 0.05)
+    assert _checked_by_curve(solution(0.01), sigma, *args, places, [wire], pts, 10.0).all()
+    assert not _checked_by_curve(solution(0.2), sigma, *args, places, [wire], pts, 10.0).any()
+    assert not _checked_by_curve(solution(0.0), sigma, *args, far, [wire], pts, 10.0).any()
 
 
 def test_matches_continuing_a_wire_take_tracing_farther_along_the_line():
