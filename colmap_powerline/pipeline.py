@@ -222,7 +222,7 @@ def probe_corridor(scene: Scene, options: ReconstructionOptions) -> WireCorridor
         decoded += verified.decoded
         wires = [
             w
-            for w in split_wires(verified.pts_in_world, azimuth, options.wires, sections=False)
+            for w in split_wires(verified.pts_in_world, azimuth, options.wires)
             if height_above_ground(scene, w) >= options.triangulate.min_wire_height
         ]  # lines on the ground (roads, rows, shadows) triangulate too: they are not wires
         length = float(sum(w.s_range[1] - w.s_range[0] for w in wires))

@@ -418,50 +418,8 @@ def estimate_azimuth(pts: F64) -> float:
     return float(np.degrees(np.arctan2(d[0], d[1])) % 180.0)
 
 
-# A chain of voxels whose one curve keeps less than half of its points holds more than one
-# curve (a false pairing that runs beside a wire along the span and meets it near the
-# supports joins their chains): it is cut into sections this long along the line, where
-# the curves lie apart, and each section's chains are fitted; the merge joins the pieces
-# one catenary fits.
-SECTION_LENGTH = 10.0
-
-
-def _section_pieces(
-    pts: F64, idx: I64, cells: npt.NDArray[np.int64], along: F64, options: WiresOptions
-) -> list[FittedWire]:
-    """The pieces of a chain of voxels whose one curve keeps less than half of its points
-    (curves that touch somewhere, e.g. near a support, joined their chains): the chain cut
-    into sections along the line, each section's own chains fitted."""
-    sec = np.floor(cells[idx, 0] * options.voxel_along / SECTION_LENGTH).astype(np.int64)
-    out: list[FittedWire] = []
-    for k in np.unique(sec):
-        sub = idx[sec == k]
-        if len(sub) < options.min_points:
-            continue
-        vox, inverse = np.unique(cells[sub], axis=0, return_inverse=True)
-        inverse = inverse.ravel()
-        scaled = vox / np.array([options.link_along_cells, options.link_cells, options.link_cells])
-        pairs = cKDTree(scaled).query_pairs(1.0 + 1e-9, p=np.inf, output_type="ndarray")
-        graph = coo_matrix(
-            (np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(len(vox), len(vox))
-        )
-        _, comp_of_vox = connected_components(graph, directed=False)
-        comp = comp_of_vox[inverse]
-        for c in np.unique(comp):
-            part = sub[comp == c]
-            if len(part) < options.min_points:
-                continue
-            fit = _fit(pts, part, along, options)
-            if fit is not None and fit.rms_residual <= options.max_rms:
-                out.append(fit)
-    return out
-
-
 def split_wires(
-    pts_in_world: F64,
-    azimuth_deg: float | None = None,
-    options: WiresOptions | None = None,
-    sections: bool = True,
+    pts_in_world: F64, azimuth_deg: float | None = None, options: WiresOptions | None = None
 ) -> list[FittedWire]:
     """Split verified points into individual wires and fit each.
 
@@ -469,9 +427,6 @@ def split_wires(
         pts_in_world: (N, 3) verified wire points.
         azimuth_deg: the line's horizontal direction (clockwise from +y); None: from the points.
         options: clustering, fitting and merging options.
-        sections: a chain of voxels that one curve does not explain is cut into sections
-            (:data:`SECTION_LENGTH`); False: one curve per chain (the corridor probe, which
-            compares directions by the wire length they give, and clutter must not add to it).
 
     Returns:
         The wires, numbered from 0, ordered across the line then by height.
@@ -511,9 +466,6 @@ def split_wires(
         if len(idx) < options.min_points:
             continue
         fit = _fit(pts, idx, along, options)
-        if sections and (fit is None or len(fit.point_indices) < len(idx) / 2):
-            pieces += _section_pieces(pts, idx, cells, along, options)
-            continue
         if fit is not None and fit.rms_residual <= options.max_rms:
             pieces.append(fit)
 

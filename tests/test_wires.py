@@ -96,27 +96,6 @@ def test_short_sloping_piece_is_fitted_closely():
     assert np.abs(fitted - true).max() < 0.02 and np.sqrt(np.mean(res**2)) < 0.025
 
 
-def test_two_curves_that_meet_at_the_supports_are_both_split_out():
-    """A false pairing hanging 1 m above a wire along the span, meeting it at both supports,
-    with as many points: near the supports their points form one chain of voxels, and one
-    curve through both keeps neither. Cut into sections where the chain is not one curve,
-    both are found whole (the views then say which is the wire)."""
-    rng = np.random.default_rng(2)
-    x = np.arange(-49.0, 49.0, 0.025)
-    z_wire = 20.0 + 400.0 * (np.cosh(x / 400.0) - 1)
-    a_high = 50.0**2 / (2 * (400.0 * (np.cosh(50 / 400.0) - 1) - 1.0))  # meets it at ±50 m
-    z_high = 21.0 + a_high * (np.cosh(x / a_high) - 1)
-    pts = np.r_[np.c_[x, np.zeros_like(x), z_wire], np.c_[x, np.zeros_like(x), z_high]]
-    pts += rng.normal(0, 0.02, pts.shape)
-    one = split_wires(pts, 90.0, sections=False)
-    assert all(len(w.point_indices) < 0.25 * len(x) for w in one)  # a curve between them
-    wires = split_wires(pts, 90.0)
-    assert len(wires) == 2
-    for w, z in zip(sorted(wires, key=lambda w: w.z0), (z_wire, z_high), strict=True):
-        assert w.s_range[1] - w.s_range[0] > 95 and len(w.point_indices) > 0.95 * len(x)
-        assert np.abs(w.distance(np.c_[x, np.zeros_like(x), z])).max() < 0.05
-
-
 def test_split_without_azimuth_hint(truth):
     pts = _noisy_points(truth, np.random.default_rng(2), gaps=False)
     assert len(split_wires(pts)) == 8
