@@ -14,11 +14,14 @@ offset ``o`` says that the wire point lies on the plane through the camera and t
 line: one linear equation in the two unknown offsets of the point across the wire's tangent.
 Two views offset across the wires fix both; more views are redundant, and the one that
 disagrees most (a neighbouring wire, a road marking) is dropped while any disagrees by more
-than the verification's tolerance. A point is kept where at least two views agree and its
-predicted precision — from the geometry of those views and the image noise measured on the
-redundant points themselves — is within ``WiresOptions.inlier_distance / 4``. Views along
-the wires from one strip give nearly the same plane and cannot fix a point: only their
-combination with views offset across the wire does.
+than the verification's tolerance. A point is kept where at least three views agree (two
+fix it, the third checks it) and its predicted precision — from the geometry of those views
+and the image noise measured on the redundant points themselves — is within
+``WiresOptions.inlier_distance / 2.33``. On a confirmed wire, a point only two views fix is
+kept where it lies on the wire's curve within their joint error, wherever the curve is
+known that well: the curve is the check (:func:`_checked_by_curve`). Views along the wires
+from one strip give nearly the same plane and cannot fix a point: only their combination
+with views offset across the wire does.
 
 Each view's offset on each wire (its pose error, how the wire looks there) is estimated from
 the places the other views check and removed. On a wire the views find (its traced share),
@@ -433,9 +436,8 @@ def _checked_by_curve(
     """The places fixed by exactly two views (well enough) whose point lies on its wire's
     curve within the point's error and the curve's there (from the points it was fitted to,
     ``corr`` neighbours counted as one), where the curve itself is known to ``max_sigma``:
-    the curve is the check a third view would give.
-    Near a support, where three views see a wire's end and one of them misses it, or where
-    only two views see it at all."""
+    the curve is the check a third view would give (near a support, where three views see
+    a wire's end and one of them misses it, or where only two views see the wire at all)."""
     two = (
         np.isfinite(sol.x[:, 0])
         & (sol.n_views == 2)
@@ -767,7 +769,8 @@ def trace_wires(
                 sol = _measure(obs, places, tolerance_px, bias, found[places.wire])
                 good, sigma = _kept(sol, sigma_px, max_sigma, min_redundancy)
         if min_redundancy <= 0:
-            # On confirmed wires, a place two views fix is checked by the wire's curve.
+            # On confirmed wires (not the second look, which asks every view to be checked
+            # by the others), a place two views fix is checked by the wire's curve.
             good |= _checked_by_curve(sol, sigma, sigma_px, max_sigma, places, wires, all_pts, corr)
         x, n_views = sol.x, sol.n_views
         pts = places.pts + np.einsum("mi,mij->mj", np.where(good[:, None], x, 0.0), places.across)
