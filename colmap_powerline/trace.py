@@ -60,7 +60,7 @@ from .verify import (
     _wire_offsets,
     image_wire_direction_deg,
 )
-from .wires import FittedWire, WiresOptions, _catenary, catenary_mid, refit
+from .wires import FittedWire, WiresOptions, catenary_mid, refit
 
 logger = logging.getLogger(__name__)
 
@@ -524,9 +524,7 @@ def _prediction_sigma(wire: FittedWire, pts: F64, s: F64, corr: float) -> tuple[
     # whose lowest point is far off).
     s_m = float(np.mean(sp))
     k = 1.0 / wire.catenary_a
-    theta = np.array(
-        [k, k * (s_m - wire.s0), float(_catenary(np.array([s_m]), k, wire.s0, wire.z0)[0])]
-    )
+    theta = np.array([k, k * (s_m - wire.s0), float(wire.z_at(np.array([s_m]))[0])])
     steps = np.array([1e-6, 1e-4, 1e-3])
 
     def jac(t: F64) -> F64:
@@ -811,7 +809,7 @@ def trace_wires(
                 ends.append((hi, min(hi + options.extend, last)))
             new_ranges.append(ends)
             new_wires[k] = fit
-            if round_ > 0:
+            if round_ > 0 and logger.isEnabledFor(logging.DEBUG):
                 logger.debug(
                     "trace round %d, wire %d: %d of %d places measured; s %.1f..%.1f -> "
                     "%.1f..%.1f, next %s",

@@ -61,8 +61,8 @@ def catenary_mid(d: F64, k: float, a: float, z_m: float) -> F64:
     curvature ``k`` at the lowest point: ``z_m + 2 sinh(a + k d / 2) sinh(k d / 2) / k``
     (any k, also 0 and below: a short or nearly straight piece stays well conditioned)."""
     x = k * np.asarray(d, np.float64) / 2
-    with np.errstate(over="ignore", invalid="ignore"):
-        shc = np.where(np.abs(x) < 1e-4, 1 + x**2 / 6, np.sinh(x) / np.where(x == 0, 1, x))
+    with np.errstate(over="ignore", invalid="ignore"):  # sinh(0) / 0: the series is taken
+        shc = np.where(np.abs(x) < 1e-4, 1 + x**2 / 6, np.sinh(x) / x)
     return z_m + d * np.sinh(a + x) * shc
 
 
