@@ -19,6 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
+from scipy.ndimage import correlate
 from scipy.optimize import least_squares
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
@@ -380,6 +381,51 @@ def merge_pieces(
     return out, joined
 
 
+def _layers(pts: F64, idx: I64, along: F64, options: WiresOptions) -> list[FittedWire]:
+    """The curves a chain of points holds, densest first: each grown from the densest layer
+    of what the curves before it left (points within the inlier distance of one another
+    across a smooth trend of all of them), until no layer of ``min_points`` is left."""
+    out: list[FittedWire] = []
+    rest = idx
+    while len(rest) >= options.min_points and len(out) < MAX_LAYERS:
+        p = pts[rest]
+        normal = np.array([along[1], -along[0]])
+        s, c = p[:, :2] @ along, p[:, :2] @ normal
+        # The trend: a straight plane and a parabola in height (robust to the layers'
+        # spread, which is what is looked for).
+        c_res = c - np.polyval(np.polyfit(s, c, 1), s)
+        z_res = p[:, 2] - np.polyval(np.polyfit(s, p[:, 2], 2), s)
+        step = options.inlier_distance
+        cells = np.floor(np.c_[c_res, z_res] / step).astype(np.int64)
+        cells -= cells.min(axis=0)
+        dense = np.zeros(cells.max(axis=0) + 3, np.int64)
+        np.add.at(dense, (cells[:, 0] + 1, cells[:, 1] + 1), 1)
+        # Points of a 3 x 3 block of cells (the layer and its spread).
+        block = correlate(dense, np.ones((3, 3), np.int64), mode="constant")
+        bi, bj = np.unravel_index(np.argmax(block), block.shape)
+        seed = rest[(np.abs(cells[:, 0] + 1 - bi) <= 1) & (np.abs(cells[:, 1] + 1 - bj) <= 1)]
+        fit = None
+        for _ in range(MAX_LAYER_GROWTH):  # refit on what lies on it, until it stops growing
+            f = _fit(pts, seed, along, options)
+            if f is None:
+                break
+            fit = f
+            grown = rest[fit.distance(pts[rest]) < options.inlier_distance]
+            if len(grown) <= len(seed):
+                break
+            seed = grown
+        if fit is None or fit.rms_residual > options.max_rms:
+            break
+        out.append(fit)
+        rest = np.setdiff1d(rest, fit.point_indices)
+    return out
+
+
+# A chain holds at most this many curves (layers); a layer is regrown at most this often.
+MAX_LAYERS = 6
+MAX_LAYER_GROWTH = 5
+
+
 def _lies_on(fit: FittedWire, piece: FittedWire, pts_in_world: F64, astray_end: bool) -> bool:
     """Does ``fit`` keep a piece: ``MERGE_INLIER_SHARE`` of its points, or, with
     ``astray_end``, of its points along a stretch that holds most of them? A piece whose end
@@ -508,8 +554,16 @@ def split_wires(
         if len(idx) < options.min_points:
             continue
         fit = _fit(pts, idx, along, options)
-        if fit is not None and fit.rms_residual <= options.max_rms:
+        if (
+            fit is not None
+            and fit.rms_residual <= options.max_rms
+            and 2 * len(fit.point_indices) >= len(idx)
+        ):
             pieces.append(fit)
+            continue
+        # One curve does not hold most of the chain: it holds several (a wire and a false
+        # pairing 1 m above it all along, joined by the points between).
+        pieces += _layers(pts, idx, along, options)
 
     # Merge pieces of the same wire (gaps, duplicates from several pairs), then refit.
     n = len(pieces)

@@ -214,6 +214,27 @@ def test_a_piece_whose_end_went_astray_is_joined_but_not_a_piece_across_the_wire
     assert len(joined) == 2 and into == {}
 
 
+def test_a_chain_holding_a_wire_and_a_false_pairing_above_it_gives_both():
+    """The shared generator's two-strip flight, seed 3: the lowest conductor's points and a
+    false pairing's 1 m above it, all along, are one chain (points between join them); one
+    curve through the chain lies between the two and keeps neither. Each is split out."""
+    rng = np.random.default_rng(3)
+    s = np.arange(-50, 50, 0.01)
+    wire = _catenary_points(s, 4.0, 20.0)
+    false = _catenary_points(s + 0.005, 4.0, 21.0) + [0.0, 0.1, 0.0]
+    between = _catenary_points(rng.uniform(-50, 50, 3000), 4.0, 20.0)
+    between[:, 2] += rng.uniform(0.1, 0.9, len(between))
+    pts = np.r_[wire, false, between]
+    wires = split_wires(pts, 90.0)
+    for z, own in ((20.0, np.arange(len(wire))), (21.0, len(wire) + np.arange(len(false)))):
+        (w,) = [w for w in wires if abs(w.z_at(np.array([0.0]))[0] - z) < 0.05]
+        assert w.s_range[0] < -49 and w.s_range[1] > 49
+        assert np.isin(own, w.point_indices).mean() > 0.99 and w.rms_residual < 0.04
+    # The scattered points between may give pieces of their own (the views judge them),
+    # each far thinner than a wire.
+    assert all(len(w.point_indices) < 0.1 * len(wire) for w in wires if len(w.point_indices) < 5000)
+
+
 def test_a_short_piece_beside_a_long_wire_is_not_joined_to_it():
     """A 20 m piece of a wire 8 m higher is a small share of the points of both; one
     catenary through all of them keeps most points (the long wire's) but not the piece's."""
