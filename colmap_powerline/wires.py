@@ -507,9 +507,16 @@ def estimate_azimuth(pts: F64) -> float:
 
 
 def split_wires(
-    pts_in_world: F64, azimuth_deg: float | None = None, options: WiresOptions | None = None
+    pts_in_world: F64,
+    azimuth_deg: float | None = None,
+    options: WiresOptions | None = None,
+    layers: bool = True,
 ) -> list[FittedWire]:
     """Split verified points into individual wires and fit each.
+
+    A chain of points that one curve does not hold (it keeps less than half of them) gives
+    its curves layer by layer (:func:`_layers`), or, without ``layers``, the one curve only
+    when that fits.
 
     Args:
         pts_in_world: (N, 3) verified wire points.
@@ -563,7 +570,10 @@ def split_wires(
             continue
         # One curve does not hold most of the chain: it holds several (a wire and a false
         # pairing 1 m above it all along, joined by the points between).
-        pieces += _layers(pts, idx, along, options)
+        if layers:
+            pieces += _layers(pts, idx, along, options)
+        elif fit is not None and fit.rms_residual <= options.max_rms:
+            pieces.append(fit)
 
     # Merge pieces of the same wire (gaps, duplicates from several pairs), then refit.
     n = len(pieces)

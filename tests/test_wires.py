@@ -233,6 +233,9 @@ def test_a_chain_holding_a_wire_and_a_false_pairing_above_it_gives_both():
     # The scattered points between may give pieces of their own (the views judge them),
     # each far thinner than a wire.
     assert all(len(w.point_indices) < 0.1 * len(wire) for w in wires if len(w.point_indices) < 5000)
+    # The corridor probe keeps one curve per chain (layers of a wrong direction's scattered
+    # matches would make it look like more wire).
+    assert len(split_wires(pts, 90.0, layers=False)) <= 1
 
 
 def test_a_short_piece_beside_a_long_wire_is_not_joined_to_it():
