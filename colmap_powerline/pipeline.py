@@ -1022,7 +1022,7 @@ def _join_pieces(
 ) -> tuple[list[FittedWire], list[WireSupport]]:
     """Confirmed pieces of one wire joined (:func:`merge_pieces`), renumbered from 0. A joined
     wire reports the support of its piece seen in the most views."""
-    wires, joined = merge_pieces(wires, pts_in_world, azimuth_deg, options, confirmed=True)
+    wires, joined = merge_pieces(wires, pts_in_world, azimuth_deg, options)
     if not joined:
         return wires, supports
     best: dict[int, WireSupport] = {}

@@ -315,19 +315,10 @@ def trim_wire(
 
 
 def merge_pieces(
-    wires: list[FittedWire],
-    pts_in_world: F64,
-    azimuth_deg: float,
-    options: WiresOptions,
-    confirmed: bool = False,
+    wires: list[FittedWire], pts_in_world: F64, azimuth_deg: float, options: WiresOptions
 ) -> tuple[list[FittedWire], dict[int, int]]:
     """Join pieces of one wire across any gap: those in one vertical plane whose points one
     catenary fits (each piece's own curve, continued far, would not meet the other's).
-
-    One catenary must keep ``MERGE_INLIER_SHARE`` of each piece's points. Pieces the views
-    have ``confirmed`` each may have an end that went astray instead (:func:`_lies_on`).
-    Unconfirmed pieces are not joined so: the views would then judge the pieces as one, and
-    a strip that sees one of them poorly would reject both.
 
     Returns:
         The wires (a joined wire keeps the id of its first piece) and, for every id that was
@@ -360,10 +351,9 @@ def merge_pieces(
                     continue
                 # Each piece must lie on it (a short piece beside a long wire is a small
                 # share of their points, so the share of all of them would not tell).
-                if not (
-                    _lies_on(fit, a, pts_in_world, confirmed)
-                    and _lies_on(fit, b, pts_in_world, confirmed)
-                ):
+                inlier = np.isin(idx, fit.point_indices)
+                n_a = len(a.point_indices)
+                if min(inlier[:n_a].mean(), inlier[n_a:].mean()) < MERGE_INLIER_SHARE:
                     continue
                 # The joined wire is new: its pairs are tried again.
                 apart = {p for p in apart if a.wire_id not in p}
@@ -424,38 +414,6 @@ def _layers(pts: F64, idx: I64, along: F64, options: WiresOptions) -> list[Fitte
 # A chain holds at most this many curves (layers); a layer is regrown at most this often.
 MAX_LAYERS = 6
 MAX_LAYER_GROWTH = 5
-
-
-def _lies_on(fit: FittedWire, piece: FittedWire, pts_in_world: F64, astray_end: bool) -> bool:
-    """Does ``fit`` keep a piece: ``MERGE_INLIER_SHARE`` of its points, or, with
-    ``astray_end``, of its points along a stretch that holds most of them? A piece whose end
-    went astray (on the shared corridor, seed 1, a shield's 6 m of matches 14-18 cm high)
-    lies on its wire elsewhere; a piece beside the wire or crossing it lies on it nowhere or
-    along a short stretch only."""
-    kept = np.isin(piece.point_indices, fit.point_indices)
-    if kept.mean() >= MERGE_INLIER_SHARE:
-        return True
-    if not astray_end:
-        return False
-    s = fit.plane_coords(pts_in_world[piece.point_indices])[0]
-    run = _longest_run(kept[np.argsort(s, kind="stable")], MERGE_INLIER_SHARE)
-    return 2 * run > len(kept)
-
-
-def _longest_run(flags: npt.NDArray[np.bool_], share: float) -> int:
-    """The length of the longest run of ``flags`` of which at least ``share`` are True (the
-    longest subarray whose sum of ``flags - share`` is not negative; linear time)."""
-    c = np.r_[0.0, np.cumsum(flags - share)]
-    low = np.minimum.accumulate(c)  # the lowest start up to each place
-    high = np.maximum.accumulate(c[::-1])[::-1]  # the highest end from each place on
-    i = j = best = 0
-    while i < len(c) and j < len(c):
-        if low[i] <= high[j] + 1e-9:
-            best = max(best, j - i)
-            j += 1
-        else:
-            i += 1
-    return best
 
 
 def _apart_where_both_are(

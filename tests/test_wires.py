@@ -185,35 +185,6 @@ def test_pieces_of_one_wire_are_joined_across_a_long_gap():
     assert len(split_wires(np.r_[left, above], 90.0)) == 2
 
 
-def test_a_piece_whose_end_went_astray_is_joined_but_not_a_piece_across_the_wire():
-    """The shared corridor's shield: a second piece whose first metres are another line's
-    matches, rising to 30 cm above the wire, lies on the wire along the rest (the joint
-    curve keeps 88 % of its points, short of 95 % overall); it is joined. A piece that only
-    crosses the wire (on it along its middle 8 of 24 m) is not. Pieces the views have not
-    confirmed are joined only when the curve keeps 95 % of each."""
-    left = _catenary_points(np.arange(-50, -15, 0.05), 4.0, 20.0)
-    s_right = np.arange(-12, 23, 0.05)
-    right = _catenary_points(s_right, 4.0, 20.0)
-    right[:, 2] += np.interp(s_right, [-12.0, -5.0], [0.3, 0.0])
-    pieces = _pieces(left, right)
-    joint = np.r_[left, right]
-    assert merge_pieces(pieces, joint, 90.0, WiresOptions())[1] == {}  # not yet confirmed
-    joined, into = merge_pieces(pieces, joint, 90.0, WiresOptions(), confirmed=True)
-    assert len(joined) == 1 and into == {1: 0}
-    assert joined[0].s_range[0] < -49 and joined[0].s_range[1] > 22
-    # Points of the astray end are not the wire's.
-    s = joined[0].plane_coords(joint[joined[0].point_indices])[0]
-    assert np.sum((s > -12) & (s < -8)) < 0.3 * 4 / 0.05
-
-    s_cross = np.arange(-2, 22, 0.05)
-    across = _catenary_points(s_cross, 4.0, 20.0)
-    across[:, 2] += 0.03 * (s_cross - 10.0)
-    joined, into = merge_pieces(
-        _pieces(left, across), np.r_[left, across], 90.0, WiresOptions(), confirmed=True
-    )
-    assert len(joined) == 2 and into == {}
-
-
 def test_a_chain_holding_a_wire_and_a_false_pairing_above_it_gives_both():
     """The shared generator's two-strip flight, seed 3: the lowest conductor's points and a
     false pairing's 1 m above it, all along, are one chain (points between join them); one
