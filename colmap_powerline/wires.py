@@ -377,9 +377,9 @@ def _layers(pts: F64, idx: I64, along: F64, options: WiresOptions) -> list[Fitte
     across a smooth trend of all of them), until no layer of ``min_points`` is left."""
     out: list[FittedWire] = []
     rest = idx
+    normal = np.array([along[1], -along[0]])
     while len(rest) >= options.min_points and len(out) < MAX_LAYERS:
         p = pts[rest]
-        normal = np.array([along[1], -along[0]])
         s, c = p[:, :2] @ along, p[:, :2] @ normal
         # The trend: a straight plane and a parabola in height (robust to the layers'
         # spread, which is what is looked for).
@@ -480,6 +480,9 @@ def split_wires(
         pts_in_world: (N, 3) verified wire points.
         azimuth_deg: the line's horizontal direction (clockwise from +y); None: from the points.
         options: clustering, fitting and merging options.
+        layers: split a chain one curve does not hold into its layers (the main split);
+            False: keep that one curve when it fits (the corridor probe, which ranks
+            directions by the length of wire their points make).
 
     Returns:
         The wires, numbered from 0, ordered across the line then by height.
