@@ -522,19 +522,13 @@ def split_wires(
         if len(idx) < options.min_points:
             continue
         fit = _fit(pts, idx, along, options)
-        if (
-            fit is not None
-            and fit.rms_residual <= options.max_rms
-            and 2 * len(fit.point_indices) >= len(idx)
-        ):
-            pieces.append(fit)
-            continue
-        # One curve does not hold most of the chain: it holds several (a wire and a false
-        # pairing 1 m above it all along, joined by the points between).
-        if layers:
+        fits = fit if fit is not None and fit.rms_residual <= options.max_rms else None
+        if layers and (fits is None or 2 * len(fits.point_indices) < len(idx)):
+            # One curve does not hold most of the chain: it holds several (a wire and a
+            # false pairing 1 m above it all along, joined by the points between).
             pieces += _layers(pts, idx, along, options)
-        elif fit is not None and fit.rms_residual <= options.max_rms:
-            pieces.append(fit)
+        elif fits is not None:
+            pieces.append(fits)
 
     # Merge pieces of the same wire (gaps, duplicates from several pairs), then refit.
     n = len(pieces)
