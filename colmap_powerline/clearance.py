@@ -192,6 +192,7 @@ SUPPORT_COLUMNS = (
     "confidence",
     "geometry",
     "traced_share",
+    "confirming_strips",
     "advice",
 )
 
@@ -230,6 +231,7 @@ def measures_csv(
             row += [sup.views, sup.strips, sup.crossing_views, f"{sup.hit_rate:.3f}"]
             row += ["" if sup.confidence is None else f"{sup.confidence:.4f}", sup.geometry]
             row.append("" if sup.traced_share is None else f"{sup.traced_share:.3f}")
+            row.append(sup.confirming_strips)
             row.append(sup.advice or "")
         writer.writerow(row)
     return buf.getvalue()

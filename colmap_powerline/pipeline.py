@@ -794,9 +794,9 @@ def _without_untraced(
     wires: list[FittedWire], supports: list[WireSupport]
 ) -> tuple[list[FittedWire], list[WireSupport]]:
     """The wires without those the views would fix but do not find (traced share below
-    ``MIN_TRACED_SHARE``), and without those no view can tell from a false pairing (no
-    crossing view) that the views can fix nowhere apart from the other wires (no traced
-    share): renumbered from 0."""
+    ``MIN_TRACED_SHARE``), and without those that no view can tell from a false pairing (no
+    crossing view), or that one strip alone confirms, and that the views can fix nowhere
+    apart from the other wires (no traced share): renumbered from 0."""
 
     def unfixed(s: WireSupport) -> bool:
         # Where only two strips see the wires, a pairing of two lines that other wires or
@@ -805,7 +805,11 @@ def _without_untraced(
         # two-strip flights (mixed seed 2; vegetation seeds 2-3 with a trial split) every
         # false wire but two was such a one and every conductor was fixed at 87-100 % of
         # its places.
-        return s.traced_share is None and s.crossing_views == 0
+        # The same where the views that can tell confirm it from one strip only (the rest
+        # see it where other wires lie): one strip confirms the plane through its cameras,
+        # not where in it the wire lies. On the shared corridor seed 3 a 16 m pairing of
+        # two conductors from two strips lay on a wire's shadow from the third.
+        return s.traced_share is None and (s.crossing_views == 0 or s.confirming_strips < 2)
 
     kept = [
         k
@@ -815,8 +819,13 @@ def _without_untraced(
     for k in sorted(set(range(len(wires))) - set(kept)):
         w, s = wires[k], supports[k]
         why = (
-            "no view can tell it from a false pairing and the views fix it nowhere apart from "
-            "the other wires (a pairing of lines other wires or their shadows draw)"
+            (
+                "no view can tell it from a false pairing"
+                if s.crossing_views == 0
+                else f"only {s.confirming_strips} strip of the views sees it apart from other wires"
+            )
+            + " and the views fix it nowhere apart from the other wires (a pairing of lines "
+            "other wires or their shadows draw)"
             if unfixed(s)
             else f"the views that would fix it find a wire at {100 * (s.traced_share or 0.0):.0f} "
             "% of its places (a false pairing)"

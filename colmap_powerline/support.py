@@ -89,6 +89,9 @@ class WireSupport:
     traced_share: float | None = None  # share of the places along it where the views would
     # fix the wire (three or more, offset across it enough) at which they found it
     # (:mod:`colmap_powerline.trace`; None: no such places)
+    confirming_strips: int = 0  # strips whose views see a stretch of it that no other wire
+    # explains (one strip alone confirms a plane through its cameras, not where in it the
+    # wire lies)
     supported_s: tuple[float, float] | None = None  # (not written) when the views reject
     # the wire as a whole but support one stretch of it: that stretch along its plane
 
@@ -684,6 +687,14 @@ def wire_support(
     for k, wire in enumerate(wires):
         ms, cross, groups, height = measured[k][:4]
         confidence, length, hit, use, why = judge(k, accepted - {k})
+        confirming = _confirming_strips(
+            measured[k][5],
+            length,
+            hit,
+            np.array([view_hit_rates[m.view_index] for m in ms]),
+            typical_rate,
+            options,
+        )
         strong = why is None  # views that can tell decided (not a glimpse in one of them)
         all_len = np.maximum(0.5 * np.array([len(m.uv) for m in ms]), 1e-9)
         all_hit = np.array([m.hit.mean() for m in ms])
@@ -706,9 +717,33 @@ def wire_support(
                 if strong or not groups
                 else _advice(wire, groups, crossing_offset * height, why == "hidden"),
                 supported_s=None if k in accepted else stretch(k, accepted - {k}),
+                confirming_strips=confirming,
             )
         )
     return out
+
+
+def _confirming_strips(
+    strip_of: npt.NDArray[np.int64],
+    length: F64,
+    hit: F64,
+    rate: F64,
+    typical_rate: float,
+    options: SupportOptions,
+) -> int:
+    """How many strips confirm a wire on their own: their views see a stretch of it that no
+    other wire explains (``length``, px) and land on wire pixels there at least
+    ``min_hit_share`` as often as they see true wires."""
+    own = length >= options.min_projected_px
+    rate = np.where(np.isfinite(rate), rate, typical_rate)
+    count = 0
+    for g in np.unique(strip_of[own]):
+        sel = own & (strip_of == g)
+        observed = float(np.average(hit[sel], weights=length[sel]))
+        count += observed >= options.min_hit_share * float(
+            np.average(rate[sel], weights=length[sel])
+        )
+    return count
 
 
 def _extent(wire: FittedWire) -> float:

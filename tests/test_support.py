@@ -130,6 +130,9 @@ def test_two_strips_keep_wires_stacked_over_each_other(two_strips):
         assert s.strips == 2, s
         assert s.geometry == "weak" and s.crossing_views == 0 and s.advice, s
         assert s.confidence is not None and s.confidence >= SupportOptions().min_confidence, s
+    # Conductors 2 and 4 lie on the others in the middle strip: only the left strip
+    # confirms them on its own.
+    assert [s.confirming_strips for s in supports] == [2, 2, 1, 2, 1]
 
 
 def test_two_strips_drop_a_false_pairing_hidden_behind_a_true_wire(two_strips):

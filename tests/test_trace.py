@@ -125,14 +125,18 @@ def test_trace_options_are_checked():
 
 
 def _support(
-    wire_id: int, confidence: float | None, traced_share: float | None = None, crossing: int = 4
+    wire_id: int,
+    confidence: float | None,
+    traced_share: float | None = None,
+    crossing: int = 4,
+    confirming: int = 2,
 ):
     from colmap_powerline.support import WireSupport
 
     return WireSupport(
         wire_id=wire_id, views=8, strips=3, crossing_views=crossing, hit_rate=0.3,
         crossing_hit_rate=0.3, chance=0.1, confidence=confidence, geometry="strong",
-        height_above_ground=20.0, traced_share=traced_share,
+        height_above_ground=20.0, traced_share=traced_share, confirming_strips=confirming,
     )  # fmt: skip
 
 
@@ -151,6 +155,16 @@ def test_wires_the_views_would_fix_but_do_not_find_are_dropped(conductors):
     sup = [_support(0, 1.0, 0.9, crossing=0), _support(1, 1.0, None, crossing=0)]
     kept, kept_sup = _without_untraced(wires[:2], sup)
     assert [s.traced_share for s in kept_sup] == [0.9] and kept[0].z0 == wires[0].z0
+    # Views that can tell confirm it, but all from one strip (the other strips see it where
+    # other wires lie) and the views fix it nowhere: it goes; confirmed from two strips, or
+    # fixed somewhere, it stays.
+    sup = [
+        _support(0, 1.0, None, confirming=1),
+        _support(1, 1.0, None, confirming=2),
+        _support(2, 1.0, 0.9, confirming=1),
+    ]
+    kept, kept_sup = _without_untraced(wires, sup)
+    assert [w.z0 for w in kept] == [wires[1].z0, wires[2].z0]
 
 
 def test_a_rejected_wire_the_views_find_gets_a_second_look(small_scene, conductors):
