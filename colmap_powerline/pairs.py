@@ -10,6 +10,7 @@ together cover the span are kept.
 
 from __future__ import annotations
 
+import functools
 import logging
 from dataclasses import dataclass
 from pathlib import Path
@@ -40,7 +41,9 @@ class PairsOptions:
     probe_bands: int = 2  # bands across a direction probed: the densest, and all of them
     # (a road may outdo the wires; a few metres of something in the densest band must not
     # stop the wider probe)
-    num_direction_images: int = 6  # images used to estimate the direction and corridor
+    num_direction_images: int | None = None  # images used to estimate the direction and
+    # corridor (None: 1.5 √N of the N registered images, at least 6 and at most 24 — a line
+    # crossing an area survey is seen by a share of its images that falls as 1/√N)
     analysis_width_px: int = 800  # those images are analysed at about this width
     scan_step_deg: float = 3.0  # orientation scan step
     template_length_frac: float = 0.04  # line template length as a share of the analysis width
@@ -59,6 +62,8 @@ class PairsOptions:
         for name in ("max_candidates", "probe_candidates", "probe_pairs", "max_pairs"):
             if getattr(self, name) < 1:
                 raise ValueError(f"{name}={getattr(self, name)} but expected ≥ 1")
+        if self.num_direction_images is not None and self.num_direction_images < 1:
+            raise ValueError(f"{self.num_direction_images=} but expected ≥ 1 (or None: 1.5 √N)")
         if self.probe_views < 0:
             raise ValueError(f"{self.probe_views=} but expected ≥ 0")
         if self.probe_bands not in (1, 2):
@@ -137,18 +142,34 @@ def _oriented_response(
     img = cv2.warpAffine(gray, rot, (w, h), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
     across = 2 * img - np.roll(img, 1, axis=1) - np.roll(img, -1, axis=1)
     resp = np.abs(cv2.blur(across, (1, length_px)))
-    yy, xx = np.ogrid[:h, :w]
-    radius = min(h, w) / 2 - length_px
-    resp[(xx - w / 2) ** 2 + (yy - h / 2) ** 2 > radius**2] = 0
+    resp[~_disc(gray.shape, length_px)] = 0
     return resp, rot
 
 
 def _line_energy(gray: npt.NDArray[np.float32], angle_deg: float, length_px: int) -> float:
-    """How strongly long thin lines of one image direction stand out (top 0.2 % response)."""
+    """How strongly long thin lines of one image direction stand out: the top 0.2 % of the
+    response over its median, both in the central disc.
+
+    Rotating by anything but a right angle interpolates, which smooths the whole response;
+    the ratio is what long lines add to the texture, alike at every angle (the top share
+    alone made the image axes stand out on every image of an area survey, and hid a line
+    only a few images see)."""
     resp, _ = _oriented_response(gray, angle_deg, length_px)
-    flat = resp.ravel()
-    k = max(flat.size // 500, 10)
-    return float(np.partition(flat, flat.size - k)[-k:].mean())
+    inside = resp[_disc(gray.shape, length_px)]
+    k = max(inside.size // 500, 10)
+    top = float(np.partition(inside, inside.size - k)[-k:].mean())
+    sample = inside[::7]
+    median = float(np.partition(sample, sample.size // 2)[sample.size // 2])
+    return top / max(median, 1e-6)
+
+
+@functools.lru_cache(maxsize=4)
+def _disc(shape: tuple[int, ...], length_px: int) -> npt.NDArray[np.bool_]:
+    """The central disc that stays inside the image at every rotation."""
+    h, w = shape[:2]
+    yy, xx = np.ogrid[:h, :w]
+    radius = min(h, w) / 2 - length_px
+    return np.asarray((xx - w / 2) ** 2 + (yy - h / 2) ** 2 <= radius**2)
 
 
 def _image_directions(
@@ -280,7 +301,10 @@ def direction_candidates(scene: Scene, options: PairsOptions | None = None) -> D
     ground_z = float(np.median(scene.ground_height(scene.centers_in_world[:, :2])))
     flying = float(np.median(scene.centers_in_world[:, 2])) - ground_z
     height = ground_z + 0.3 * flying  # for image directions only (nadir: hardly matters)
-    views = _pick_spread(scene, options.num_direction_images)
+    n_views = options.num_direction_images
+    if n_views is None:
+        n_views = int(np.clip(round(1.5 * np.sqrt(len(scene.images))), 6, 24))
+    views = _pick_spread(scene, n_views)
     analysed = []
     azimuths, weights = [], []
     for view in views:

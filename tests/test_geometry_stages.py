@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 
+import cv2
 import numpy as np
 import pytest
 from scipy.spatial import cKDTree
@@ -492,3 +493,26 @@ def test_support_keeps_true_wires_and_drops_false_ones(small_scene, pairs, truth
 def test_pairs_options_are_checked(field, value):
     with pytest.raises(ValueError, match=field):
         PairsOptions(**{field: value})
+
+
+def test_image_directions_favour_no_image_axis_and_find_a_faint_line():
+    """On plain texture no direction stands out, the image axes included (rotating by any
+    other angle smooths the texture; an area survey's images all showed their axes before
+    the line's own direction); a faint thin line over it is found."""
+    from colmap_powerline.pairs import _image_directions
+
+    rng = np.random.default_rng(3)
+    noise = rng.normal(0.0, 1.0, (600, 800)).astype(np.float32)
+    texture = 128 + 12 * cv2.GaussianBlur(noise, (0, 0), 1.2) / 0.24
+    peaks = _image_directions(texture, PairsOptions())
+    assert max(c for _, c in peaks) < 1.1, peaks
+    line = texture.copy()
+    angle = np.deg2rad(63.0)
+    t = np.linspace(-400, 400, 4000)
+    x = np.round(400 + t * np.cos(angle)).astype(int)
+    y = np.round(300 + t * np.sin(angle)).astype(int)
+    ok = (x >= 0) & (x < 800) & (y >= 0) & (y < 600)
+    line[y[ok], x[ok]] += 12.0  # the texture's sigma
+    peaks = _image_directions(line, PairsOptions())
+    best = max(peaks, key=lambda p: p[1])
+    assert abs(best[0] - 63.0) < 1.5 and best[1] > 1.2, peaks
