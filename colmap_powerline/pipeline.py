@@ -23,7 +23,7 @@ from tqdm import tqdm
 from .clearance import WireMeasures, assign_kinds, measure_wire
 from .dense import dense_ground, fill, open_ply
 from .detect import DetectOptions, WireMask, detect_wires
-from .errors import InputError
+from .errors import InputError, PairGeometryError
 from .export import export_results, wire_colors
 from .georef import Georeference, crs_converter, crs_wkt, read_georeference
 from .las import CONDUCTOR, WIRE_CLASS, write_las
@@ -277,9 +277,16 @@ def primitives_for_pairs(
     for k, p in enumerate(
         tqdm(pairs, desc="pairs", unit="pair", disable=not options.show_progress)
     ):
-        geom = rectify_pair(
-            scene, p.left, p.right, options.rectify, options.triangulate.max_wire_height
-        )
+        try:
+            geom = rectify_pair(
+                scene, p.left, p.right, options.rectify, options.triangulate.max_wire_height
+            )
+        except PairGeometryError as exc:
+            # One pair the selection's estimate let through (an oblique pair in a probe of a
+            # direction that is not the line's on Seneca) does not stop the run.
+            logger.warning("pair %d skipped: %s", k, exc)
+            out.append(Primitives(np.zeros((0, 3)), np.zeros(0), np.zeros(0), np.zeros(0), k))
+            continue
         centres = []
         for side, view in enumerate(geom.sides):
             image = read_image(view.path)

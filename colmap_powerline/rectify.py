@@ -17,7 +17,7 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 
-from .errors import InputError
+from .errors import InputError, PairGeometryError
 from .scene import Scene, SceneImage
 
 logger = logging.getLogger(__name__)
@@ -173,7 +173,7 @@ def _scene_depth_range(
     if seen.sum() < 3:
         seen = left.project(pts)[2] | right.project(pts)[2]
     if seen.sum() < 3:
-        raise InputError(
+        raise PairGeometryError(
             f"{scene.model_path}: no sparse points seen by {left.name} and {right.name}"
         )
     ground = pts[seen]
@@ -211,12 +211,16 @@ def rectify_pair(
     baseline_vec = right.center_in_world - left.center_in_world
     baseline = float(np.linalg.norm(baseline_vec))
     if baseline <= 0:
-        raise InputError(f"{left.name} and {right.name} have the same camera centre: no stereo")
+        raise PairGeometryError(
+            f"{left.name} and {right.name} have the same camera centre: no stereo"
+        )
     x_axis = baseline_vec / baseline
     z_mean = left.viewing_dir_in_world + right.viewing_dir_in_world
     z_axis = z_mean - (z_mean @ x_axis) * x_axis
     if np.linalg.norm(z_axis) < 1e-6:
-        raise InputError(f"{left.name} and {right.name} look along their baseline: no stereo")
+        raise PairGeometryError(
+            f"{left.name} and {right.name} look along their baseline: no stereo"
+        )
     z_axis /= np.linalg.norm(z_axis)
     y_axis = np.cross(z_axis, x_axis)
     rect_from_world = np.stack([x_axis, y_axis, z_axis])
@@ -237,7 +241,7 @@ def rectify_pair(
         ]
         rays = im.rays_in_world(border) @ rect_from_world.T
         if (rays[:, 2] <= 0).any():
-            raise InputError(
+            raise PairGeometryError(
                 f"{im.name}: image border looks behind the rectified plane; pair too oblique"
             )
         xy = rays[:, :2] / rays[:, 2:]
@@ -249,11 +253,11 @@ def rectify_pair(
     xl0, xl1 = max(lx0, rx0 + d_far), min(lx1, rx1 + d_near)
     xr0, xr1 = max(rx0, lx0 - d_near), min(rx1, lx1 - d_far)
     if y1 <= y0 or xl1 <= xl0 or xr1 <= xr0:
-        raise InputError(f"{left.name} and {right.name} have no common footprint")
+        raise PairGeometryError(f"{left.name} and {right.name} have no common footprint")
     height = int(np.ceil((y1 - y0) * focal))
     widths = (int(np.ceil((xl1 - xl0) * focal)), int(np.ceil((xr1 - xr0) * focal)))
     if max(height, *widths) > options.max_side_px:
-        raise InputError(
+        raise PairGeometryError(
             f"{left.name}/{right.name}: rectified images would be {widths}x{height} px "
             f"(> max_side_px={options.max_side_px}); pair too oblique"
         )

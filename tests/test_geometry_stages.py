@@ -516,3 +516,18 @@ def test_image_directions_favour_no_image_axis_and_find_a_faint_line():
     peaks = _image_directions(line, PairsOptions())
     best = max(peaks, key=lambda p: p[1])
     assert abs(best[0] - 63.0) < 1.5 and best[1] > 1.2, peaks
+
+
+def test_a_pair_that_cannot_be_rectified_is_skipped_not_fatal(small_scene, corridor, pairs, caplog):
+    """A chosen pair whose images cannot be rectified together (here an image paired with
+    itself: no baseline) gives no primitives and a warning; the other pairs are used."""
+    from colmap_powerline.pipeline import primitives_for_pairs
+
+    good = pairs[0]
+    bad = dataclasses.replace(good, right=good.left)
+    options = ReconstructionOptions(show_progress=False)
+    with caplog.at_level("WARNING", logger="colmap_powerline.pipeline"):
+        prims, _ = primitives_for_pairs(small_scene, [bad, good], corridor, options)
+    assert [p.pair_index for p in prims] == [0, 1]
+    assert len(prims[0]) == 0 and len(prims[1]) > 0
+    assert any("pair 0 skipped" in r.getMessage() for r in caplog.records)
