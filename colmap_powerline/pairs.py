@@ -41,9 +41,10 @@ class PairsOptions:
     probe_bands: int = 2  # bands across a direction probed: the densest, and all of them
     # (a road may outdo the wires; a few metres of something in the densest band must not
     # stop the wider probe)
-    num_direction_images: int | None = None  # images used to estimate the direction and
-    # corridor (None: 1.5 √N of the N registered images, at least 6 and at most 24 — a line
-    # crossing an area survey is seen by a share of its images that falls as 1/√N)
+    num_direction_images: int = 6  # images used to estimate the direction and corridor
+    # (when no direction they give has wires, 1.5 √N of the N images, 6-24, are read and
+    # ranked alike at every angle: a line crossing an area survey is seen by a share of its
+    # images that falls as 1/√N)
     analysis_width_px: int = 800  # those images are analysed at about this width
     scan_step_deg: float = 3.0  # orientation scan step
     template_length_frac: float = 0.04  # line template length as a share of the analysis width
@@ -62,8 +63,8 @@ class PairsOptions:
         for name in ("max_candidates", "probe_candidates", "probe_pairs", "max_pairs"):
             if getattr(self, name) < 1:
                 raise ValueError(f"{name}={getattr(self, name)} but expected ≥ 1")
-        if self.num_direction_images is not None and self.num_direction_images < 1:
-            raise ValueError(f"{self.num_direction_images=} but expected ≥ 1 (or None: 1.5 √N)")
+        if self.num_direction_images < 1:
+            raise ValueError(f"{self.num_direction_images=} but expected ≥ 1")
         if self.probe_views < 0:
             raise ValueError(f"{self.probe_views=} but expected ≥ 0")
         if self.probe_bands not in (1, 2):
@@ -146,15 +147,24 @@ def _oriented_response(
     return resp, rot
 
 
-def _line_energy(gray: npt.NDArray[np.float32], angle_deg: float, length_px: int) -> float:
+def _line_energy(
+    gray: npt.NDArray[np.float32], angle_deg: float, length_px: int, fair: bool = False
+) -> float:
     """How strongly long thin lines of one image direction stand out: the top 0.2 % of the
-    response over its median, both in the central disc.
+    response (``fair``: of the central disc's, over its median there).
 
-    Rotating by anything but a right angle interpolates, which smooths the whole response;
-    the ratio is what long lines add to the texture, alike at every angle (the top share
-    alone made the image axes stand out on every image of an area survey, and hid a line
-    only a few images see)."""
+    Rotating by anything but a right angle interpolates, which smooths the whole response,
+    so the top share alone favours the image axes a little — where flights along or across
+    the line put the wires (faint at the analysis width, they rank high there partly by it).
+    Over the median, what long lines add to the texture counts alike at every angle: an
+    area survey's line at 70° to its strips, which a few of its images see, ranks above the
+    image axes (shared grid seed 3), but a flight across loses its wires (shared cross
+    seed 1)."""
     resp, _ = _oriented_response(gray, angle_deg, length_px)
+    if not fair:
+        flat = resp.ravel()  # (the disc's outside is 0)
+        k = max(flat.size // 500, 10)
+        return float(np.partition(flat, flat.size - k)[-k:].mean())
     inside = resp[_disc(gray.shape, length_px)]
     k = max(inside.size // 500, 10)
     top = float(np.partition(inside, inside.size - k)[-k:].mean())
@@ -173,16 +183,17 @@ def _disc(shape: tuple[int, ...], length_px: int) -> npt.NDArray[np.bool_]:
 
 
 def _image_directions(
-    gray: npt.NDArray[np.float32], options: PairsOptions, num_peaks: int = 3
+    gray: npt.NDArray[np.float32], options: PairsOptions, num_peaks: int = 3, fair: bool = False
 ) -> list[tuple[float, float]]:
     """The strongest thin-line directions of an image (degrees, 0 = +x, 90 = down), each with
-    its contrast against the median direction, strongest first."""
+    its contrast against the median direction, strongest first (``fair``: see
+    :func:`_line_energy`)."""
     length = max(int(options.template_length_frac * gray.shape[1]), 9)
     # Rotating by anything but a right angle interpolates, which smooths: smooth every
     # direction alike first, or the image axes stand out on plain texture.
     gray = cv2.GaussianBlur(gray, (0, 0), 0.7)
     angles = np.arange(0.0, 180.0, options.scan_step_deg)
-    energy = np.array([_line_energy(gray, a, length) for a in angles])
+    energy = np.array([_line_energy(gray, a, length, fair) for a in angles])
     median = max(float(np.median(energy)), 1e-9)
     peaks = [
         k
@@ -193,7 +204,7 @@ def _image_directions(
     out = []
     for k in peaks:
         fine = angles[k] + np.arange(-options.scan_step_deg, options.scan_step_deg + 1e-9, 0.5)
-        fine_energy = np.array([_line_energy(gray, a, length) for a in fine])
+        fine_energy = np.array([_line_energy(gray, a, length, fair) for a in fine])
         out.append((float(fine[int(np.argmax(fine_energy))] % 180.0), float(energy[k] / median)))
     return out
 
@@ -290,20 +301,24 @@ class DirectionCandidates:
         return tuple(v.path for v, _, _ in self.analysed)
 
 
-def direction_candidates(scene: Scene, options: PairsOptions | None = None) -> DirectionCandidates:
+def direction_candidates(
+    scene: Scene, options: PairsOptions | None = None, wide: bool = False
+) -> DirectionCandidates:
     """Long thin image lines → horizontal directions in the world that several images share.
 
     Wires are among them, but so are roads, field rows, shadows and field edges; which one is
     the wires is decided in 3D (:func:`colmap_powerline.pipeline.probe_corridor`). A given
-    ``wire_azimuth_deg`` is the only candidate.
+    ``wire_azimuth_deg`` is the only candidate. ``wide``: 1.5 √N images (6-24) instead of
+    ``num_direction_images``, each direction ranked alike at every angle (see
+    :func:`_line_energy`).
     """
     options = options or PairsOptions()
     ground_z = float(np.median(scene.ground_height(scene.centers_in_world[:, :2])))
     flying = float(np.median(scene.centers_in_world[:, 2])) - ground_z
     height = ground_z + 0.3 * flying  # for image directions only (nadir: hardly matters)
     n_views = options.num_direction_images
-    if n_views is None:
-        n_views = int(np.clip(round(1.5 * np.sqrt(len(scene.images))), 6, 24))
+    if wide:
+        n_views = max(n_views, int(np.clip(round(1.5 * np.sqrt(len(scene.images))), 6, 24)))
     views = _pick_spread(scene, n_views)
     analysed = []
     azimuths, weights = [], []
@@ -315,7 +330,7 @@ def direction_candidates(scene: Scene, options: PairsOptions | None = None) -> D
         ).astype(np.float32)
         analysed.append((view, gray, factor))
         if options.wire_azimuth_deg is None:
-            for angle, contrast in _image_directions(gray, options):
+            for angle, contrast in _image_directions(gray, options, fair=wide):
                 azimuths.append(_world_azimuth(view, angle, height))
                 weights.append(contrast)
     if options.wire_azimuth_deg is not None:

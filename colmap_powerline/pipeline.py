@@ -192,7 +192,42 @@ def probe_corridor(scene: Scene, options: ReconstructionOptions) -> WireCorridor
             scene, cands, cands.azimuths_deg[k], options.pairs, heights
         )
     ]
-    for prov in probes:
+    probed = [cands.azimuths_deg[k] for k in order]
+    widened = False
+    while True:
+        if not probes:
+            if best is not None or widened or options.pairs.wire_azimuth_deg is not None:
+                break
+            # No direction the few images gave has wires: an area survey whose line a few of
+            # its images see, at an angle to its strips (shared grid seed 3: 0 of 6 probes).
+            # Read more images, rank their directions alike at every angle, and probe those
+            # not probed yet.
+            widened = True
+            wide = direction_candidates(scene, options.pairs, wide=True)
+            decoded += [p for p in wide.decoded if p not in decoded]
+            tol = options.pairs.candidate_tolerance_deg
+            fresh = [
+                k
+                for k in np.argsort(wide.weights)[::-1]
+                if all(abs((wide.azimuths_deg[k] - a + 90) % 180 - 90) >= tol for a in probed)
+            ][: options.pairs.probe_candidates]
+            logger.info(
+                "probe: no direction gave wires; %d more from %d images ranked alike at every "
+                "angle: %s",
+                len(fresh),
+                len(wide.analysed),
+                [round(wide.azimuths_deg[k], 1) for k in fresh],
+            )
+            probes = [
+                p
+                for k in fresh
+                for p in provisional_corridors(
+                    scene, wide, wide.azimuths_deg[k], options.pairs, heights
+                )
+            ]
+            if not probes:
+                break
+        prov = probes.pop(0)
         azimuth = prov.azimuth_deg
         try:
             pairs = select_pairs(scene, prov, probe_options, options.verify.crossing_offset)

@@ -94,6 +94,28 @@ def test_corridor_direction_estimated_from_images(small_scene, truth):
     assert lo <= np.median(mid[:, 2]) <= hi
 
 
+def test_the_direction_search_widens_when_no_direction_has_wires(small_scene, monkeypatch, caplog):
+    """When the first look offers only directions without wires (here one across the line),
+    more images are read, ranked alike at every angle, and the line is found among them."""
+    import colmap_powerline.pipeline as pipeline
+
+    real = pipeline.direction_candidates
+
+    def first_look_misses(scene, options, wide=False):
+        if wide:
+            return real(scene, options, wide=True)
+        across = dataclasses.replace(options, wire_azimuth_deg=(AZIMUTH + 90.0) % 180.0)
+        return real(scene, across)
+
+    monkeypatch.setattr(pipeline, "direction_candidates", first_look_misses)
+    options = ReconstructionOptions(show_progress=False)
+    with caplog.at_level("INFO", logger="colmap_powerline.pipeline"):
+        corridor = probe_corridor(small_scene, options)
+    assert any("no direction gave wires" in r.getMessage() for r in caplog.records)
+    err = abs((corridor.azimuth_deg - AZIMUTH + 90) % 180 - 90)
+    assert err < 2.0 and corridor.measured, corridor.azimuth_deg
+
+
 def test_corridor_with_given_direction_is_measured(corridor):
     assert corridor.azimuth_deg == AZIMUTH and not corridor.from_images and corridor.measured
     samples = corridor.sample_points(1.0)
@@ -495,17 +517,20 @@ def test_pairs_options_are_checked(field, value):
         PairsOptions(**{field: value})
 
 
-def test_image_directions_favour_no_image_axis_and_find_a_faint_line():
-    """On plain texture no direction stands out, the image axes included (rotating by any
-    other angle smooths the texture; an area survey's images all showed their axes before
-    the line's own direction); a faint thin line over it is found."""
+def test_image_directions_ranked_alike_favour_no_image_axis_and_find_a_faint_line():
+    """Ranked alike at every angle (the wider look when no direction has wires), plain
+    texture shows no direction, the image axes included (rotating by any other angle smooths
+    the texture: the top responses alone lift the axes); a faint thin line over it is found."""
     from colmap_powerline.pairs import _image_directions
 
     rng = np.random.default_rng(3)
     noise = rng.normal(0.0, 1.0, (600, 800)).astype(np.float32)
     texture = 128 + 12 * cv2.GaussianBlur(noise, (0, 0), 1.2) / 0.24
-    peaks = _image_directions(texture, PairsOptions())
+    peaks = _image_directions(texture, PairsOptions(), fair=True)
     assert max(c for _, c in peaks) < 1.1, peaks
+    # The top responses alone: the axes come first.
+    axes = _image_directions(texture, PairsOptions())
+    assert min(abs((a + 45) % 90 - 45) for a, _ in axes[:2]) < 1.0, axes
     line = texture.copy()
     angle = np.deg2rad(63.0)
     t = np.linspace(-400, 400, 4000)
@@ -513,7 +538,7 @@ def test_image_directions_favour_no_image_axis_and_find_a_faint_line():
     y = np.round(300 + t * np.sin(angle)).astype(int)
     ok = (x >= 0) & (x < 800) & (y >= 0) & (y < 600)
     line[y[ok], x[ok]] += 12.0  # the texture's sigma
-    peaks = _image_directions(line, PairsOptions())
+    peaks = _image_directions(line, PairsOptions(), fair=True)
     best = max(peaks, key=lambda p: p[1])
     assert abs(best[0] - 63.0) < 1.5 and best[1] > 1.2, peaks
 
