@@ -175,6 +175,9 @@ def test_sag_and_clearance_against_the_truth(run, medium_span):
     terrain = Terrain.load(medium_span.terrain)
     rows = list(csv.DictReader((out / "wires.csv").open()))
     assert [int(r["wire_id"]) for r in rows] == [w.wire_id for w in result.wires]
+    assert [int(r["confirming_strips"]) for r in rows] == [
+        s.confirming_strips for s in result.supports
+    ]
     checked = 0
     for wire, m, row in zip(result.wires, result.measures, rows, strict=True):
         poly = wire.polyline(1.0)
