@@ -864,7 +864,8 @@ def _without_untraced(
             (
                 "no view can tell it from a false pairing"
                 if s.crossing_views == 0
-                else f"only {s.confirming_strips} strip of the views sees it apart from other wires"
+                else f"{s.confirming_strips} strip(s) of the views confirm it apart from other "
+                "wires (one confirms a plane, not a line)"
             )
             + " and the views fix it nowhere apart from the other wires (a pairing of lines "
             "other wires or their shadows draw)"
