@@ -301,6 +301,14 @@ class DirectionCandidates:
         return tuple(v.path for v, _, _ in self.analysed)
 
 
+# The wider look (when no direction of the first has wires) takes more directions per image
+# and more candidates: the line is seen by a few of the images read, where roads, field edges
+# and the strips' image axes outdo it (shared grid seeds 3 and 4: its 70° ranks 2nd-6th in
+# the images that see it, 5th of the candidates).
+WIDE_PEAKS = 5
+WIDE_CANDIDATES = 2
+
+
 def direction_candidates(
     scene: Scene, options: PairsOptions | None = None, wide: bool = False
 ) -> DirectionCandidates:
@@ -310,7 +318,8 @@ def direction_candidates(
     the wires is decided in 3D (:func:`colmap_powerline.pipeline.probe_corridor`). A given
     ``wire_azimuth_deg`` is the only candidate. ``wide``: 1.5 √N images (6-24) instead of
     ``num_direction_images``, each direction ranked alike at every angle (see
-    :func:`_line_energy`).
+    :func:`_line_energy`), ``WIDE_PEAKS`` directions per image, ``WIDE_CANDIDATES`` times
+    ``max_candidates``.
     """
     options = options or PairsOptions()
     ground_z = float(np.median(scene.ground_height(scene.centers_in_world[:, :2])))
@@ -330,7 +339,8 @@ def direction_candidates(
         ).astype(np.float32)
         analysed.append((view, gray, factor))
         if options.wire_azimuth_deg is None:
-            for angle, contrast in _image_directions(gray, options, fair=wide):
+            peaks = WIDE_PEAKS if wide else 3
+            for angle, contrast in _image_directions(gray, options, peaks, fair=wide):
                 azimuths.append(_world_azimuth(view, angle, height))
                 weights.append(contrast)
     if options.wire_azimuth_deg is not None:
@@ -340,7 +350,8 @@ def direction_candidates(
         cands = []
         remaining = np.ones(len(az_arr), bool)
         tol = options.candidate_tolerance_deg
-        while remaining.any() and len(cands) < options.max_candidates:
+        most = WIDE_CANDIDATES * options.max_candidates if wide else options.max_candidates
+        while remaining.any() and len(cands) < most:
             cand = _consensus_azimuth(
                 az_arr[remaining], w_arr[remaining], tolerance_deg=tol, min_share=0.0
             )

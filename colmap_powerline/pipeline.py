@@ -28,6 +28,7 @@ from .export import export_results, wire_colors
 from .georef import Georeference, crs_converter, crs_wkt, read_georeference
 from .las import CONDUCTOR, WIRE_CLASS, write_las
 from .pairs import (
+    WIDE_CANDIDATES,
     ImagePair,
     PairsOptions,
     WireCorridor,
@@ -201,7 +202,7 @@ def probe_corridor(scene: Scene, options: ReconstructionOptions) -> WireCorridor
             # No direction the few images gave has wires: an area survey whose line a few of
             # its images see, at an angle to its strips (shared grid seed 3: 0 of 6 probes).
             # Read more images, rank their directions alike at every angle, and probe those
-            # not probed yet.
+            # not probed yet (up to twice as many: this is the run's last chance to find it).
             widened = True
             wide = direction_candidates(scene, options.pairs, wide=True)
             decoded += [p for p in wide.decoded if p not in decoded]
@@ -210,7 +211,7 @@ def probe_corridor(scene: Scene, options: ReconstructionOptions) -> WireCorridor
                 k
                 for k in np.argsort(wide.weights)[::-1]
                 if all(abs((wide.azimuths_deg[k] - a + 90) % 180 - 90) >= tol for a in probed)
-            ][: options.pairs.probe_candidates]
+            ][: WIDE_CANDIDATES * options.pairs.probe_candidates]
             logger.info(
                 "probe: no direction gave wires; %d more from %d images ranked alike at every "
                 "angle: %s",
