@@ -170,6 +170,12 @@ def crop_wire_mask(options: DetectOptions, template_length_px: int = 0) -> WireM
     return wire_mask
 
 
+# A power line carries at least two wires (a circuit and its return; a single-wire earth
+# return line is the exception): a best direction whose probe found fewer makes the direction
+# search look wider, and the wider look's directions compete with it by wire length.
+MIN_LINE_WIRES = 2
+
+
 def probe_corridor(scene: Scene, options: ReconstructionOptions) -> WireCorridor:
     """Find where the wires are by measuring them: a few pairs per candidate direction.
 
@@ -185,6 +191,7 @@ def probe_corridor(scene: Scene, options: ReconstructionOptions) -> WireCorridor
     quiet = dataclasses.replace(options, show_progress=False)
     probe_options = dataclasses.replace(options.pairs, max_pairs=options.pairs.probe_pairs)
     best: tuple[float, WireCorridor, F64, float] | None = None
+    best_wires = 0
     order = np.argsort(cands.weights)[::-1][: options.pairs.probe_candidates]
     probes = [
         prov
@@ -197,10 +204,16 @@ def probe_corridor(scene: Scene, options: ReconstructionOptions) -> WireCorridor
     widened = False
     while True:
         if not probes:
-            if best is not None or widened or options.pairs.wire_azimuth_deg is not None:
+            if (
+                (best is not None and best_wires >= MIN_LINE_WIRES)
+                or widened
+                or options.pairs.wire_azimuth_deg is not None
+            ):
                 break
-            # No direction the few images gave has wires: an area survey whose line a few of
-            # its images see, at an angle to its strips (shared grid seed 3: 0 of 6 probes).
+            # No direction the few images gave has wires (or only one, where a line carries
+            # at least two): an area survey whose line a few of its images see, at an angle
+            # to its strips (shared grid seed 3: 0 of 6 probes; seed 5: one 18 m piece 8 m
+            # above the ground). The wider look's directions compete with the best so far.
             # Read more images, rank their directions alike at every angle, and probe those
             # not probed yet (up to twice as many: this is the run's last chance to find it).
             widened = True
@@ -213,8 +226,8 @@ def probe_corridor(scene: Scene, options: ReconstructionOptions) -> WireCorridor
                 if all(abs((wide.azimuths_deg[k] - a + 90) % 180 - 90) >= tol for a in probed)
             ][: WIDE_CANDIDATES * options.pairs.probe_candidates]
             logger.info(
-                "probe: no direction gave wires; %d more from %d images ranked alike at every "
-                "angle: %s",
+                "probe: %s; %d more from %d images ranked alike at every angle: %s",
+                "no direction gave wires" if best is None else "the best direction gave one wire",
                 len(fresh),
                 len(wide.analysed),
                 [round(wide.azimuths_deg[k], 1) for k in fresh],
@@ -284,6 +297,7 @@ def probe_corridor(scene: Scene, options: ReconstructionOptions) -> WireCorridor
                 np.array([w.s_range[1] - w.s_range[0] for w in wires]),
             )
             best = (length, prov, verified.pts_in_world[idx], measured)
+            best_wires = len(wires)
     if best is None:
         azimuth = cands.azimuths_deg[int(np.argmax(cands.weights))]
         logger.warning(
