@@ -778,8 +778,15 @@ def support_members(
     def ends(w: FittedWire) -> F64:
         return np.sort(w.points(np.array(w.s_range))[:, :2] @ along_xy)
 
+    def end_z(w: FittedWire) -> F64:
+        p = w.points(np.array(w.s_range))
+        return p[np.argsort(p[:, :2] @ along_xy), 2]
+
     spans = [ends(w) for w in wires]
     long_spans = [e for w, e in zip(wires, spans, strict=True) if _extent(w) >= long_length]
+    # Heights of the long wires' ends, in the order of ``ends`` (lower end first).
+    long_end_z = [end_z(w) for w in wires if _extent(w) >= long_length]
+    top = [float(w.polyline(1.0)[:, 2].max()) for w in wires]
     # Wires seen only in part end short of their support, inside the span: the support is
     # where the outermost ends of a group of nearby ends meet (the lower ends from below,
     # the upper ends from above).
@@ -817,7 +824,30 @@ def support_members(
             ):
                 out.append((k, at))
                 break
+            # At the support and far below every long wire's end there: no conductor of it
+            # hangs that low (insulators are a few metres long); a member of the structure
+            # (shared cross seed 6: a 5.6 m piece 9 m above the ground at the tower, the
+            # wires' ends 25-35 m up, ending where the outermost wire ends).
+            near = [(e, z) for e, z in zip(long_spans, long_end_z, strict=True) if _ends_at(e, at)]
+            if (
+                near
+                and lo <= at + SUPPORT_END_SPREAD
+                and hi >= at - SUPPORT_END_SPREAD
+                and top[k] < min(_end_z_at(e, z, at) for e, z in near) - SUPPORT_END_SPREAD
+            ):
+                out.append((k, at))
+                break
     return out
+
+
+def _ends_at(span: F64, at: float) -> bool:
+    """Does a wire spanning ``span`` along the line end within SUPPORT_END_SPREAD of ``at``?"""
+    return bool(np.min(np.abs(span - at)) <= SUPPORT_END_SPREAD)
+
+
+def _end_z_at(span: F64, end_z: F64, at: float) -> float:
+    """The height of a wire's end nearest ``at`` along the line."""
+    return float(end_z[int(np.argmin(np.abs(span - at)))])
 
 
 def keep_supported(

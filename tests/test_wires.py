@@ -345,7 +345,7 @@ def test_a_short_piece_wholly_past_the_supports_is_not_a_wire():
     span hangs is kept."""
     ends = [(-50.6, 48.4), (-50.5, 48.6), (-50.3, 48.5), (-50.3, 48.3), (-49.9, 48.7)]
     wires = [_piece(k, 4.0 * (-1) ** k, lo, hi, 21.0 + k) for k, (lo, hi) in enumerate(ends)]
-    wires.append(_piece(5, 10.8, 49.4, 58.6, 12.7))  # past the upper support
+    wires.append(_piece(5, 10.8, 49.4, 58.6, 20.7))  # past the upper support
     wires.append(_piece(6, -10.0, -62.0, -55.0, 12.0))  # past the lower one
     wires.append(_piece(7, 5.0, 10.0, 20.0, 25.0))  # inside the span
     found = dict(support_members(wires, np.array([1.0, 0.0]), long_length=25.0))
@@ -354,3 +354,16 @@ def test_a_short_piece_wholly_past_the_supports_is_not_a_wire():
     wires.append(_piece(8, 4.0, 48.6, 140.0, 21.0))
     found = dict(support_members(wires, np.array([1.0, 0.0]), long_length=25.0))
     assert 5 not in found and 6 in found
+
+
+def test_a_short_piece_far_below_the_wire_ends_at_a_support_is_a_member():
+    """The shared cross seed 6: a 5.6 m piece 9 m above the ground at the tower, ending where
+    the outermost wire ends (not past it), while the wires end 21-25 m up: a member of the
+    structure. The same piece at the wires' height, or inside the span, stays."""
+    ends = [(-50.6, 48.4), (-50.5, 48.6), (-50.3, 48.5), (-50.3, 48.3), (-49.9, 48.7)]
+    wires = [_piece(k, 4.0 * (-1) ** k, lo, hi, 21.0 + k) for k, (lo, hi) in enumerate(ends)]
+    wires.append(_piece(5, 2.7, -50.6, -45.0, 8.9))  # at the lower support, low
+    wires.append(_piece(6, 2.7, -50.6, -45.0, 20.5))  # the same at the wires' height
+    wires.append(_piece(7, 2.7, -20.0, -14.0, 8.9))  # low, but inside the span
+    found = dict(support_members(wires, np.array([1.0, 0.0]), long_length=25.0))
+    assert set(found) == {5}
