@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import functools
 import logging
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -310,7 +311,10 @@ WIDE_CANDIDATES = 2
 
 
 def direction_candidates(
-    scene: Scene, options: PairsOptions | None = None, wide: bool = False
+    scene: Scene,
+    options: PairsOptions | None = None,
+    wide: bool = False,
+    read: Sequence[tuple[SceneImage, F64, int]] = (),
 ) -> DirectionCandidates:
     """Long thin image lines → horizontal directions in the world that several images share.
 
@@ -319,7 +323,8 @@ def direction_candidates(
     ``wire_azimuth_deg`` is the only candidate. ``wide``: 1.5 √N images (6-24) instead of
     ``num_direction_images``, each direction ranked alike at every angle (see
     :func:`_line_energy`), ``WIDE_PEAKS`` directions per image, ``WIDE_CANDIDATES`` times
-    ``max_candidates``.
+    ``max_candidates``. ``read``: images already analysed (``analysed`` of a first look),
+    not decoded again.
     """
     options = options or PairsOptions()
     ground_z = float(np.median(scene.ground_height(scene.centers_in_world[:, :2])))
@@ -331,12 +336,16 @@ def direction_candidates(
     views = _pick_spread(scene, n_views)
     analysed = []
     azimuths, weights = [], []
+    known = {v.name: (g, f) for v, g, f in read}
     for view in views:
-        raw = read_image(view.path, cv2.IMREAD_GRAYSCALE)
-        factor = max(1, int(round(raw.shape[1] / options.analysis_width_px)))
-        gray = cv2.resize(
-            raw, (raw.shape[1] // factor, raw.shape[0] // factor), interpolation=cv2.INTER_AREA
-        ).astype(np.float32)
+        if view.name in known:
+            gray, factor = known[view.name]
+        else:
+            raw = read_image(view.path, cv2.IMREAD_GRAYSCALE)
+            factor = max(1, int(round(raw.shape[1] / options.analysis_width_px)))
+            gray = cv2.resize(
+                raw, (raw.shape[1] // factor, raw.shape[0] // factor), interpolation=cv2.INTER_AREA
+            ).astype(np.float32)
         analysed.append((view, gray, factor))
         if options.wire_azimuth_deg is None:
             peaks = WIDE_PEAKS if wide else 3

@@ -9,7 +9,7 @@ import dataclasses
 import json
 import logging
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -29,6 +29,7 @@ from .georef import Georeference, crs_converter, crs_wkt, read_georeference
 from .las import CONDUCTOR, WIRE_CLASS, write_las
 from .pairs import (
     WIDE_CANDIDATES,
+    DirectionCandidates,
     ImagePair,
     PairsOptions,
     WireCorridor,
@@ -176,6 +177,82 @@ def crop_wire_mask(options: DetectOptions, template_length_px: int = 0) -> WireM
 MIN_LINE_WIRES = 2
 
 
+@dataclass(frozen=True, eq=False)
+class _Probe:
+    """What the pairs of one probed band measured: its wires' length and number, the band,
+    their points, and the direction of their planes."""
+
+    length: float
+    num_wires: int
+    corridor: WireCorridor
+    pts_in_world: F64
+    azimuth_deg: float
+
+
+def _probe(
+    scene: Scene, prov: WireCorridor, options: ReconstructionOptions
+) -> tuple[_Probe | None, list[Path]]:
+    """Triangulate and verify a few pairs crossing one provisional band; the wires above the
+    ground their points make (None: none), and the images decoded."""
+    quiet = dataclasses.replace(options, show_progress=False)
+    probe_options = dataclasses.replace(options.pairs, max_pairs=options.pairs.probe_pairs)
+    azimuth = prov.azimuth_deg
+    try:
+        pairs = select_pairs(scene, prov, probe_options, options.verify.crossing_offset)
+    except InputError as e:
+        logger.info("probe %.1f°: %s", azimuth, e)
+        return None, []
+    prims, decoded = primitives_for_pairs(scene, pairs, prov, quiet)
+    if sum(len(p) for p in prims) == 0:
+        return None, decoded
+    # The views around the pairs are enough to tell wires from other lines.
+    mid = np.mean([[p.left.center_in_world, p.right.center_in_world] for p in pairs], (0, 1))
+    near = np.argsort(np.linalg.norm(scene.centers_in_world[:, :2] - mid[:2], axis=1))
+    keep = set(near[: options.pairs.probe_views].tolist())
+    keep |= {scene.images.index(v) for p in pairs for v in (p.left, p.right)}
+    views = tuple(scene.images[i] for i in sorted(keep))
+    verified = verify_primitives(
+        scene.with_images(views),
+        prims,
+        [(p.left.name, p.right.name) for p in pairs],
+        crop_wire_mask(options.detect, options.verify.template_length_px),
+        azimuth,
+        options.verify,
+        show_progress=False,
+        min_height_above_ground=options.triangulate.min_wire_height,
+    )
+    decoded += verified.decoded
+    # Lines on the ground (roads, rows, shadows) triangulate too: they are not wires. The
+    # probe ranks directions by the length of wire their points make: it splits chains
+    # into layers of curves only in the main split (a wrong direction's scattered false
+    # matches give many: shared cross seed 1, probe at 0.2°: 6 → 17 wires, 124 → 377 m,
+    # over the wires' 89.7°, 328 m).
+    wires = [
+        w
+        for w in split_wires(verified.pts_in_world, azimuth, options.wires, layers=False)
+        if height_above_ground(scene, w) >= options.triangulate.min_wire_height
+    ]
+    length = float(sum(w.s_range[1] - w.s_range[0] for w in wires))
+    logger.info(
+        "probe %.1f°: %d pairs, %d verified points, %d wires, %.0f m of wire",
+        azimuth,
+        len(pairs),
+        len(verified),
+        len(wires),
+        length,
+    )
+    if not wires:
+        return None, decoded
+    idx = np.concatenate([w.point_indices for w in wires])
+    # The direction of the wires' own planes, weighted by their length (the points' spread
+    # is not: parallel wires widen it across the line).
+    measured = axial_mean_deg(
+        np.array([np.rad2deg(np.arctan2(*w.plane_direction_xy)) for w in wires]),
+        np.array([w.s_range[1] - w.s_range[0] for w in wires]),
+    )
+    return _Probe(length, len(wires), prov, verified.pts_in_world[idx], measured), decoded
+
+
 def probe_corridor(scene: Scene, options: ReconstructionOptions) -> WireCorridor:
     """Find where the wires are by measuring them: a few pairs per candidate direction.
 
@@ -188,116 +265,45 @@ def probe_corridor(scene: Scene, options: ReconstructionOptions) -> WireCorridor
     cands = direction_candidates(scene, options.pairs)
     decoded = list(cands.decoded)
     heights = (options.triangulate.min_wire_height, options.triangulate.max_wire_height)
-    quiet = dataclasses.replace(options, show_progress=False)
-    probe_options = dataclasses.replace(options.pairs, max_pairs=options.pairs.probe_pairs)
-    best: tuple[float, WireCorridor, F64, float] | None = None
-    best_wires = 0
-    order = np.argsort(cands.weights)[::-1][: options.pairs.probe_candidates]
-    probes = [
-        prov
-        for k in order
-        for prov in provisional_corridors(
-            scene, cands, cands.azimuths_deg[k], options.pairs, heights
-        )
-    ]
-    probed = [cands.azimuths_deg[k] for k in order]
-    widened = False
-    while True:
-        if not probes:
-            if (
-                (best is not None and best_wires >= MIN_LINE_WIRES)
-                or widened
-                or options.pairs.wire_azimuth_deg is not None
+    best: _Probe | None = None
+
+    def probe_all(found: DirectionCandidates, ks: Sequence[int]) -> None:
+        nonlocal best
+        for k in ks:
+            for prov in provisional_corridors(
+                scene, found, found.azimuths_deg[k], options.pairs, heights
             ):
-                break
-            # No direction the few images gave has wires (or only one, where a line carries
-            # at least two): an area survey whose line a few of its images see, at an angle
-            # to its strips (shared grid seed 3: 0 of 6 probes; seed 5: one 18 m piece 8 m
-            # above the ground). The wider look's directions compete with the best so far.
-            # Read more images, rank their directions alike at every angle, and probe those
-            # not probed yet (up to twice as many: this is the run's last chance to find it).
-            widened = True
-            wide = direction_candidates(scene, options.pairs, wide=True)
-            decoded += [p for p in wide.decoded if p not in decoded]
-            tol = options.pairs.candidate_tolerance_deg
-            fresh = [
-                k
-                for k in np.argsort(wide.weights)[::-1]
-                if all(abs((wide.azimuths_deg[k] - a + 90) % 180 - 90) >= tol for a in probed)
-            ][: WIDE_CANDIDATES * options.pairs.probe_candidates]
-            logger.info(
-                "probe: %s; %d more from %d images ranked alike at every angle: %s",
-                "no direction gave wires" if best is None else "the best direction gave one wire",
-                len(fresh),
-                len(wide.analysed),
-                [round(wide.azimuths_deg[k], 1) for k in fresh],
-            )
-            probes = [
-                p
-                for k in fresh
-                for p in provisional_corridors(
-                    scene, wide, wide.azimuths_deg[k], options.pairs, heights
-                )
-            ]
-            if not probes:
-                break
-        prov = probes.pop(0)
-        azimuth = prov.azimuth_deg
-        try:
-            pairs = select_pairs(scene, prov, probe_options, options.verify.crossing_offset)
-        except InputError as e:
-            logger.info("probe %.1f°: %s", azimuth, e)
-            continue
-        prims, n = primitives_for_pairs(scene, pairs, prov, quiet)
-        decoded += n
-        if sum(len(p) for p in prims) == 0:
-            continue
-        # The views around the pairs are enough to tell wires from other lines.
-        mid = np.mean([[p.left.center_in_world, p.right.center_in_world] for p in pairs], (0, 1))
-        near = np.argsort(np.linalg.norm(scene.centers_in_world[:, :2] - mid[:2], axis=1))
-        keep = set(near[: options.pairs.probe_views].tolist())
-        keep |= {scene.images.index(v) for p in pairs for v in (p.left, p.right)}
-        views = tuple(scene.images[i] for i in sorted(keep))
-        verified = verify_primitives(
-            scene.with_images(views),
-            prims,
-            [(p.left.name, p.right.name) for p in pairs],
-            crop_wire_mask(options.detect, options.verify.template_length_px),
-            azimuth,
-            options.verify,
-            show_progress=False,
-            min_height_above_ground=options.triangulate.min_wire_height,
-        )
-        decoded += verified.decoded
-        # Lines on the ground (roads, rows, shadows) triangulate too: they are not wires. The
-        # probe ranks directions by the length of wire their points make: it splits chains
-        # into layers of curves only in the main split (a wrong direction's scattered false
-        # matches give many: shared cross seed 1, probe at 0.2°: 6 → 17 wires, 124 → 377 m,
-        # over the wires' 89.7°, 328 m).
-        wires = [
-            w
-            for w in split_wires(verified.pts_in_world, azimuth, options.wires, layers=False)
-            if height_above_ground(scene, w) >= options.triangulate.min_wire_height
-        ]
-        length = float(sum(w.s_range[1] - w.s_range[0] for w in wires))
+                probe, n = _probe(scene, prov, options)
+                decoded.extend(n)
+                if probe is not None and (best is None or probe.length > best.length):
+                    best = probe
+
+    order = list(np.argsort(cands.weights)[::-1][: options.pairs.probe_candidates])
+    probe_all(cands, order)
+    if options.pairs.wire_azimuth_deg is None and (best is None or best.num_wires < MIN_LINE_WIRES):
+        # No direction the few images gave has wires (or only one, where a line carries
+        # at least two): an area survey whose line a few of its images see, at an angle
+        # to its strips (shared grid seed 3: 0 of 6 probes; seed 5: one 18 m piece 8 m
+        # above the ground). The wider look's directions compete with the best so far.
+        # Read more images, rank their directions alike at every angle, and probe those
+        # not probed yet (up to twice as many: this is the run's last chance to find it).
+        wide = direction_candidates(scene, options.pairs, wide=True, read=cands.analysed)
+        decoded += [p for p in wide.decoded if p not in decoded]
+        tol = options.pairs.candidate_tolerance_deg
+        probed = [cands.azimuths_deg[k] for k in order]
+        fresh = [
+            int(k)
+            for k in np.argsort(wide.weights)[::-1]
+            if all(abs((wide.azimuths_deg[k] - a + 90) % 180 - 90) >= tol for a in probed)
+        ][: WIDE_CANDIDATES * options.pairs.probe_candidates]
         logger.info(
-            "probe %.1f°: %d pairs, %d verified points, %d wires, %.0f m of wire",
-            azimuth,
-            len(pairs),
-            len(verified),
-            len(wires),
-            length,
+            "probe: %s; %d more from %d images ranked alike at every angle: %s",
+            "no direction gave wires" if best is None else "the best direction gave one wire",
+            len(fresh),
+            len(wide.analysed),
+            [round(wide.azimuths_deg[k], 1) for k in fresh],
         )
-        if wires and (best is None or length > best[0]):
-            idx = np.concatenate([w.point_indices for w in wires])
-            # The direction of the wires' own planes, weighted by their length (the points'
-            # spread is not: parallel wires widen it across the line).
-            measured = axial_mean_deg(
-                np.array([np.rad2deg(np.arctan2(*w.plane_direction_xy)) for w in wires]),
-                np.array([w.s_range[1] - w.s_range[0] for w in wires]),
-            )
-            best = (length, prov, verified.pts_in_world[idx], measured)
-            best_wires = len(wires)
+        probe_all(wide, fresh)
     if best is None:
         azimuth = cands.azimuths_deg[int(np.argmax(cands.weights))]
         logger.warning(
@@ -310,10 +316,10 @@ def probe_corridor(scene: Scene, options: ReconstructionOptions) -> WireCorridor
         return dataclasses.replace(prov, decoded=tuple(decoded))
     return corridor_from_points(
         scene,
-        best[2],
-        best[3] if options.pairs.wire_azimuth_deg is None else best[1].azimuth_deg,
+        best.pts_in_world,
+        best.azimuth_deg if options.pairs.wire_azimuth_deg is None else best.corridor.azimuth_deg,
         options.pairs,
-        best[1],
+        best.corridor,
         tuple(decoded),
     )
 

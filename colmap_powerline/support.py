@@ -778,15 +778,20 @@ def support_members(
     def ends(w: FittedWire) -> F64:
         return np.sort(w.points(np.array(w.s_range))[:, :2] @ along_xy)
 
-    def end_z(w: FittedWire) -> F64:
-        p = w.points(np.array(w.s_range))
-        return p[np.argsort(p[:, :2] @ along_xy), 2]
-
     spans = [ends(w) for w in wires]
-    long_spans = [e for w, e in zip(wires, spans, strict=True) if _extent(w) >= long_length]
-    # Heights of the long wires' ends, in the order of ``ends`` (lower end first).
-    long_end_z = [end_z(w) for w in wires if _extent(w) >= long_length]
-    top = [float(w.polyline(1.0)[:, 2].max()) for w in wires]
+    long_wires = [(w, e) for w, e in zip(wires, spans, strict=True) if _extent(w) >= long_length]
+    long_spans = [e for _, e in long_wires]
+
+    def lowest_end_z(at: float) -> float:
+        """The lowest of the long wires' ends within SUPPORT_END_SPREAD of ``at`` (inf: none)."""
+        z = []
+        for w, _ in long_wires:
+            p = w.points(np.array(w.s_range))
+            d = np.abs(p[:, :2] @ along_xy - at)
+            if d.min() <= SUPPORT_END_SPREAD:
+                z.append(float(p[np.argmin(d), 2]))
+        return min(z, default=np.inf)
+
     # Wires seen only in part end short of their support, inside the span: the support is
     # where the outermost ends of a group of nearby ends meet (the lower ends from below,
     # the upper ends from above).
@@ -800,7 +805,8 @@ def support_members(
         for group in np.split(pos, breaks):
             outer = group[group <= group[0] + SUPPORT_END_SPREAD]
             if len(outer) >= 2:
-                supports.append((sign, float(sign * np.median(outer)), float(sign * outer[0])))
+                at = float(sign * np.median(outer))
+                supports.append((sign, at, float(sign * outer[0]), lowest_end_z(at)))
     out = []
     for k, (w, (lo, hi)) in enumerate(zip(wires, spans, strict=True)):
         if _extent(w) >= long_length:
@@ -809,13 +815,13 @@ def support_members(
         # lies past where they all end; a span beyond has long wires of its own there).
         past = [
             (sign, at)
-            for sign, at, outermost in supports
+            for sign, at, outermost, _ in supports
             if (hi if sign > 0 else -lo) <= sign * outermost - SUPPORT_OVERHANG_OUT
         ]
         if past and not any(e[0] < hi and lo < e[1] for e in long_spans):
             out.append((k, past[0][1]))
             continue
-        for sign, at, outermost in supports:
+        for sign, at, outermost, lowest_end in supports:
             # Along the outward direction: the piece's outer and inner ends.
             outer_end, inner_end = (lo, hi) if sign > 0 else (-hi, -lo)
             if (
@@ -828,26 +834,14 @@ def support_members(
             # hangs that low (insulators are a few metres long); a member of the structure
             # (shared cross seed 6: a 5.6 m piece 9 m above the ground at the tower, the
             # wires' ends 25-35 m up, ending where the outermost wire ends).
-            near = [(e, z) for e, z in zip(long_spans, long_end_z, strict=True) if _ends_at(e, at)]
             if (
-                near
-                and lo <= at + SUPPORT_END_SPREAD
+                lo <= at + SUPPORT_END_SPREAD
                 and hi >= at - SUPPORT_END_SPREAD
-                and top[k] < min(_end_z_at(e, z, at) for e, z in near) - SUPPORT_END_SPREAD
+                and float(w.polyline(1.0)[:, 2].max()) < lowest_end - SUPPORT_END_SPREAD
             ):
                 out.append((k, at))
                 break
     return out
-
-
-def _ends_at(span: F64, at: float) -> bool:
-    """Does a wire spanning ``span`` along the line end within SUPPORT_END_SPREAD of ``at``?"""
-    return bool(np.min(np.abs(span - at)) <= SUPPORT_END_SPREAD)
-
-
-def _end_z_at(span: F64, end_z: F64, at: float) -> float:
-    """The height of a wire's end nearest ``at`` along the line."""
-    return float(end_z[int(np.argmin(np.abs(span - at)))])
 
 
 def keep_supported(

@@ -101,9 +101,9 @@ def test_the_direction_search_widens_when_no_direction_has_wires(small_scene, mo
 
     real = pipeline.direction_candidates
 
-    def first_look_misses(scene, options, wide=False):
+    def first_look_misses(scene, options, wide=False, read=()):
         if wide:
-            return real(scene, options, wide=True)
+            return real(scene, options, wide=True, read=read)
         across = dataclasses.replace(options, wire_azimuth_deg=(AZIMUTH + 90.0) % 180.0)
         return real(scene, across)
 
