@@ -33,7 +33,10 @@ there, no farther along the line than the measured wires reach. A round's points
 that leave the curve continued by more than ``MAX_BEND`` standard errors (the fit's own,
 from its residuals, and the points') are dropped and that end stops: past a support the next
 span's wire bends away or the line turns, and clutter a peak test took does not follow a
-catenary.
+catenary. "While the views keep finding them" means at no less than ``MIN_EXTEND_SHARE``
+of the rate at which they find the wire along its confirmed stretch: a round whose end
+they find less often is dropped and that end stops (a field's rows along the line give
+chance agreements at a few places, and those do follow a curve, refitted to them).
 """
 
 from __future__ import annotations
@@ -98,6 +101,12 @@ MAX_BEND = 4.0
 # A wire's traced share is judged on at least this many places where the views would fix it
 # (a metre of wire at the half-scale GSD).
 MIN_MEASURABLE_PLACES = 10
+
+# A round past an end goes on (and its points count) only where the views found the wire at
+# no less than this share of the rate at which they find it along its confirmed stretch, at
+# the places they would fix: a wire runs on as it was, while clutter that a peak test takes
+# (a ploughed field's rows beside and along the line) is found at a few places in each round.
+MIN_EXTEND_SHARE = 0.5
 
 
 @dataclass(kw_only=True)
@@ -707,6 +716,12 @@ def trace_wires(
     # Neighbouring places share image evidence over the line template's length.
     corr = max(template_length_px / options.step_px, 1.0)
     share = np.full(len(wires), np.nan)
+    # The share of the places the views would fix where they found each wire along its
+    # confirmed stretch, with the loose peaks where those count: what a round past an end
+    # is held to.
+    base_share = np.full(len(wires), np.nan)
+    # (wire, end: 0 low, 1 high) → the points of a round on probation at that end.
+    probation: dict[tuple[int, int], I64] = {}
     bias: dict[tuple[int, int], float] = {}
     az = np.deg2rad(azimuth_deg)
     along = np.array([np.sin(az), np.cos(az)])
@@ -770,13 +785,55 @@ def trace_wires(
             # On confirmed wires (not the second look, which asks every view to be checked
             # by the others), a place two views fix is checked by the wire's curve.
             good |= _checked_by_curve(sol, sigma, sigma_px, max_sigma, places, wires, all_pts, corr)
+        measurable = _measurable(sol, sigma_px, max_sigma)
+        if round_ == 0:
+            for k in range(len(wires)):
+                mine = measurable & (places.wire == k)
+                if mine.sum() >= MIN_MEASURABLE_PLACES:
+                    base_share[k] = float((good & mine).sum() / mine.sum())
         x, n_views = sol.x, sol.n_views
         pts = places.pts + np.einsum("mi,mij->mj", np.where(good[:, None], x, 0.0), places.across)
         new_wires = list(wires)
         new_ranges: list[list[tuple[float, float]]] = []
         for k, w in enumerate(wires):
+            # An end traced this round that the views found too seldom is on probation: its
+            # points are kept while the next round finds the wire as it was; a second such
+            # round in a row stops that end, and the points of both are dropped (a stretch
+            # where the wire is hard to see, a road under it, is let pass once).
+            weak: list[tuple[int, npt.NDArray[np.bool_]]] = []
+            removed = np.zeros(0, np.int64)
+            if round_ > 0:
+                at_k = places.wire == k
+                s_all = np.full(len(places.pts), np.nan)
+                s_all[at_k] = w.plane_coords(places.pts[at_k])[0]
+                for j, side in enumerate((s_all < w.s_range[0], s_all > w.s_range[1])):
+                    fixable = side & measurable
+                    if fixable.sum() < MIN_MEASURABLE_PLACES or not np.isfinite(base_share[k]):
+                        continue
+                    found_share = (good & fixable).sum() / fixable.sum()
+                    if found_share >= MIN_EXTEND_SHARE * base_share[k]:
+                        probation.pop((k, j), None)
+                        continue
+                    logger.debug(
+                        "trace round %d, wire %d: an end found at %.0f %% of %d places "
+                        "(%.0f %% along the wire): %s",
+                        round_,
+                        w.wire_id,
+                        100 * found_share,
+                        int(fixable.sum()),
+                        100 * base_share[k],
+                        "stops" if (k, j) in probation else "on probation",
+                    )
+                    if (k, j) in probation:
+                        good = good & ~side
+                        removed = np.r_[removed, probation.pop((k, j))]
+                    else:
+                        weak.append((j, side))
             mine = np.flatnonzero(good & (places.wire == k))
             if len(mine) == 0:
+                if len(removed):
+                    keep = w.point_indices[~np.isin(w.point_indices, removed)]
+                    new_wires[k] = refit(w, all_pts, keep, along, wires_options)
                 new_ranges.append([])
                 continue
             base = len(all_pts)
@@ -796,6 +853,9 @@ def trace_wires(
                     ):
                         drop |= side
                 idx = np.r_[w.point_indices, base + np.flatnonzero(~drop)]
+                idx = idx[~np.isin(idx, removed)]
+                for j, side in weak:
+                    probation[k, j] = np.intersect1d(base + np.flatnonzero(side[mine]), idx)
             fit = refit(w, all_pts, idx, along, wires_options)
             lo, hi = fit.s_range
             # An end goes on while the views found the wire over most of the last extension,
@@ -833,6 +893,13 @@ def trace_wires(
         ranges = new_ranges
         if options.extend == 0:
             break
+    # A last round on probation is not followed by one that finds the wire: its points go.
+    for k in sorted({k for k, _ in probation}):
+        gone = np.concatenate([v for (i, _), v in probation.items() if i == k])
+        w = wires[k]
+        wires[k] = refit(
+            w, all_pts, w.point_indices[~np.isin(w.point_indices, gone)], along, wires_options
+        )
     # The traced points are those the refitted wires keep (within their inlier distance of
     # the curve: not a place past a support where another curve goes on), in wire order.
     n0 = len(pts_in_world)

@@ -31,7 +31,8 @@ length-weighted; each shield wire's completeness; median distance of all output 
 nearest true wire; share of points farther than 30 cm; ghosts (package: a fitted wire whose
 polyline lies mostly > 30 cm from every true wire; shared: a wire label whose points are
 mostly > 30 cm from every true wire); purity (share of each label's inliers on its dominant
-true wire, inlier-weighted); reconstruction wall time.
+true wire, inlier-weighted); reconstruction wall time, and that time over the decode floor
+(every image of the scene decoded once, one after another).
 
     python scripts/benchmark_flights.py                                   # the whole matrix
     python scripts/benchmark_flights.py --generators shared --flights corridor --seeds 3
@@ -55,6 +56,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import cv2
 import numpy as np
 
 FLIGHTS = ("corridor", "along4", "grid", "across")
@@ -233,6 +235,15 @@ def reconstruct(scene: Path, out: Path, timeout: float) -> tuple[int | str, str,
     else:  # the CLI's summary: "N wires from M verified points (P pairs) → OUT"
         message = next((ln for ln in proc.stdout.splitlines() if ln.strip()), "")
     return proc.returncode, message, elapsed
+
+
+def decode_floor(images: Path) -> float:
+    """Seconds to decode every image of the scene once, one after another: the floor of a
+    run that reads them all (the run itself reads only those that see the wires)."""
+    t0 = time.perf_counter()
+    for path in sorted(images.iterdir()):
+        cv2.imread(str(path), cv2.IMREAD_COLOR)
+    return time.perf_counter() - t0
 
 
 # ---------------------------------------------------------------- scoring
@@ -416,6 +427,7 @@ def run_cell(cell: Cell, args: argparse.Namespace) -> dict[str, Any]:
     out = run_dir / "out"
     status, message, elapsed = reconstruct(scene, out, args.timeout)
     row.update({"exit": status, "message": message, "time_s": elapsed, "output": str(out)})
+    row["decode_s"] = decode_floor(scene / "images")
     if status == 0:
         try:
             metrics = (
@@ -439,7 +451,7 @@ def markdown(rows: Sequence[dict[str, Any]]) -> str:
     head = (
         "| generator | flight | ground (preset) | seed | images | exit | wires found "
         "| conductors complete % (min–max, weighted) | shields % | median cm "
-        "| outliers > 30 cm % | ghosts | purity % | time s |"
+        "| outliers > 30 cm % | ghosts | purity % | time s | × decode |"
     )
     lines = [head, "|" + "---|" * head.count(" | ") + "---|"]
     for r in rows:
@@ -464,9 +476,13 @@ def markdown(rows: Sequence[dict[str, Any]]) -> str:
         else:
             cols = ["–"] * 7
         time_text = "–" if r.get("time_s") is None else f"{r['time_s']:.0f}"
+        floor = r.get("decode_s")
+        ratio = "–" if r.get("time_s") is None or not floor else f"{r['time_s'] / floor:.1f}"
         lines.append(
             f"| {r['generator']} | {r['flight']} | {ground} | {r['seed']} | "
-            f"{r.get('images', '–')} | {exit_text} | " + " | ".join(cols) + f" | {time_text} |"
+            f"{r.get('images', '–')} | {exit_text} | "
+            + " | ".join(cols)
+            + f" | {time_text} | {ratio} |"
         )
     return "\n".join(lines)
 
