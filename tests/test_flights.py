@@ -103,10 +103,12 @@ def test_corridor_flight(corridor_run):
     """Three strips along the line, the middle one over it (24 images): the weakest
     geometry, where the views along the wires confirm false pairings too.
 
-    Measured at cb92f16: conductors at 96.1-99.9 %, 0.24 % of ~31 700 points > 30 cm, and
-    one false pairing of two strips (9 m, weak geometry: the outer strip sees it on a
-    conductor, the middle one on a line no wire explains): this test fails on it (open).
-    With tracing (9767657, and 0f9f32d before it): the same, 0.25 % of 32 665 points.
+    Measured at 60be6bf: conductors at 96.1-99.8 %, no ghost, 0.03 % of 32 615 points
+    > 30 cm (the test passes). At cb92f16: conductors at 96.1-99.9 %, 0.24 % of ~31 700
+    points > 30 cm, and one false pairing of two strips (9 m, weak geometry: the outer
+    strip sees it on a conductor, the middle one on a line no wire explains): the test
+    failed on it; with tracing (9767657, and 0f9f32d before it) the same, 0.25 % of 32 665
+    points.
     Before: conductors at 94.4, 93.0, 85.8, 71.2, 50.3, 39.1 % completeness (1a33d3c: 95.3,
     87.4, 83.8, 69.8, 51.5, 43.0 %), no ghost, 0.00-0.01 % of ~8 200-9 000 assigned points
     > 30 cm; 7 wires reported. Before 7931609 a false pairing on weak geometry passed the
