@@ -481,6 +481,39 @@ def _measurable(sol: _Solution, sigma_px: float, max_sigma: float) -> npt.NDArra
     return seen_ok & (sigma_seen <= max_sigma)
 
 
+def _found_share(
+    good: npt.NDArray[np.bool_], measurable: npt.NDArray[np.bool_], wire: I64, n_wires: int
+) -> F64:
+    """(n_wires,) per wire, the share of the places the views would fix where they found it
+    (NaN: fewer than ``MIN_MEASURABLE_PLACES`` such places)."""
+    fixable = np.bincount(wire[measurable], minlength=n_wires)[:n_wires]
+    found = np.bincount(wire[measurable & good], minlength=n_wires)[:n_wires]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(fixable >= MIN_MEASURABLE_PLACES, found / fixable, np.nan)
+
+
+def _ends_found(
+    w: FittedWire,
+    k: int,
+    places: _Places,
+    good: npt.NDArray[np.bool_],
+    measurable: npt.NDArray[np.bool_],
+) -> list[tuple[int, npt.NDArray[np.bool_], float]]:
+    """For each end of wire ``k`` (0: low ``s``, 1: high) traced past in this round: the
+    places past it, and the share of those the views would fix where they found the wire
+    (NaN: fewer than ``MIN_MEASURABLE_PLACES`` such places)."""
+    at_k = places.wire == k
+    s = np.full(len(places.pts), np.nan)
+    s[at_k] = w.plane_coords(places.pts[at_k])[0]
+    out = []
+    for j, side in enumerate((s < w.s_range[0], s > w.s_range[1])):
+        fixable = side & measurable
+        n = int(fixable.sum())
+        share = (good & fixable).sum() / n if n >= MIN_MEASURABLE_PLACES else np.nan
+        out.append((j, side, float(share)))
+    return out
+
+
 def _places(
     wires: list[FittedWire],
     ranges: list[list[tuple[float, float]]],
@@ -765,14 +798,12 @@ def trace_wires(
         if sigma_px is None:
             sigma_px = _image_noise(sol, tolerance_px)
         good, sigma = _kept(sol, sigma_px, max_sigma, min_redundancy)
+        # Where the views would fix the wire (enough of them, crossing enough), had they all
+        # found it: from the views' geometry alone, whatever they found.
+        measurable = _measurable(sol, sigma_px, max_sigma)
         if round_ == 0:
-            # Where the views would fix the wire (enough of them, crossing enough), had they
-            # all found it: the share of those places where they did (strict detection).
-            measurable = _measurable(sol, sigma_px, max_sigma)
-            for k in range(len(wires)):
-                mine = measurable & (places.wire == k)
-                if mine.sum() >= MIN_MEASURABLE_PLACES:
-                    share[k] = float((good & mine).sum() / mine.sum())
+            # The share of those places where they did (strict detection).
+            share = _found_share(good, measurable, places.wire, len(wires))
             if options.loose:
                 # On the wires the views find, within the stretch confirmed, a peak that
                 # stands out will do.
@@ -785,12 +816,8 @@ def trace_wires(
             # On confirmed wires (not the second look, which asks every view to be checked
             # by the others), a place two views fix is checked by the wire's curve.
             good |= _checked_by_curve(sol, sigma, sigma_px, max_sigma, places, wires, all_pts, corr)
-        measurable = _measurable(sol, sigma_px, max_sigma)
         if round_ == 0:
-            for k in range(len(wires)):
-                mine = measurable & (places.wire == k)
-                if mine.sum() >= MIN_MEASURABLE_PLACES:
-                    base_share[k] = float((good & mine).sum() / mine.sum())
+            base_share = _found_share(good, measurable, places.wire, len(wires))
         x, n_views = sol.x, sol.n_views
         pts = places.pts + np.einsum("mi,mij->mj", np.where(good[:, None], x, 0.0), places.across)
         new_wires = list(wires)
@@ -802,33 +829,28 @@ def trace_wires(
             # where the wire is hard to see, a road under it, is let pass once).
             weak: list[tuple[int, npt.NDArray[np.bool_]]] = []
             removed = np.zeros(0, np.int64)
-            if round_ > 0:
-                at_k = places.wire == k
-                s_all = np.full(len(places.pts), np.nan)
-                s_all[at_k] = w.plane_coords(places.pts[at_k])[0]
-                for j, side in enumerate((s_all < w.s_range[0], s_all > w.s_range[1])):
-                    fixable = side & measurable
-                    if fixable.sum() < MIN_MEASURABLE_PLACES or not np.isfinite(base_share[k]):
-                        continue
-                    found_share = (good & fixable).sum() / fixable.sum()
-                    if found_share >= MIN_EXTEND_SHARE * base_share[k]:
-                        probation.pop((k, j), None)
-                        continue
-                    logger.debug(
-                        "trace round %d, wire %d: an end found at %.0f %% of %d places "
-                        "(%.0f %% along the wire): %s",
-                        round_,
-                        w.wire_id,
-                        100 * found_share,
-                        int(fixable.sum()),
-                        100 * base_share[k],
-                        "stops" if (k, j) in probation else "on probation",
-                    )
-                    if (k, j) in probation:
-                        good = good & ~side
-                        removed = np.r_[removed, probation.pop((k, j))]
-                    else:
-                        weak.append((j, side))
+            ends_found = _ends_found(w, k, places, good, measurable) if round_ > 0 else []
+            for j, side, found_share in ends_found:
+                limit = MIN_EXTEND_SHARE * base_share[k]
+                if np.isnan(found_share) or np.isnan(limit):
+                    continue  # too few places to judge
+                if found_share >= limit:
+                    probation.pop((k, j), None)
+                    continue
+                logger.debug(
+                    "trace round %d, wire %d: an end found at %.0f %% of its places (%.0f %% "
+                    "along the wire): %s",
+                    round_,
+                    w.wire_id,
+                    100 * found_share,
+                    100 * base_share[k],
+                    "stops" if (k, j) in probation else "on probation",
+                )
+                if (k, j) in probation:
+                    good = good & ~side
+                    removed = np.r_[removed, probation.pop((k, j))]
+                else:
+                    weak.append((j, side))
             mine = np.flatnonzero(good & (places.wire == k))
             if len(mine) == 0:
                 if len(removed):
