@@ -312,6 +312,22 @@ def _evidence(length_px: F64, hit: F64, chance: F64, correlation_px: float) -> f
     return float(np.sum(np.where(f > c, kl, 0.0) * length_px / correlation_px))
 
 
+def _hit_share(measures: Sequence[_ViewMeasure]) -> float:
+    """How often a wire lands on wire pixels over the views ``measures`` (by length)."""
+    if not measures:
+        return 0.0
+    return float(
+        np.average([m.hit.mean() for m in measures], weights=[len(m.uv) for m in measures])
+    )
+
+
+def _short_of(observed: float, expected: float, n_eff: float, min_share: float) -> bool:
+    """Is a hit share ``observed`` below ``min_share`` of ``expected``, beyond what chance
+    along ``n_eff`` independent stretches explains?"""
+    slack = 2.0 * np.sqrt(expected * (1 - expected) / n_eff)
+    return observed < min_share * expected - slack
+
+
 def wire_support(
     scene: Scene,
     wires: Sequence[FittedWire],
@@ -510,9 +526,7 @@ def wire_support(
         # single points is low where whole wires are found nearly everywhere (0.77 against
         # 0.96-1.0 at 12 MP on the package's corridor, where a shield that only the middle
         # strip sees met the top conductor's rays at 65 % of its length).
-        seen_px = np.array([len(m.uv) for m in views], np.float64)
-        own = float(np.average([m.hit.mean() for m in views], weights=seen_px))
-        expected = max(expected, own)
+        expected = max(expected, _hit_share(views))
         share = np.where(enough, hits / np.maximum(count, 1), 0.0)
         return bool(share.max() >= options.min_hit_share * expected)
 
@@ -588,8 +602,7 @@ def wire_support(
             expected = float(np.average(rate[sel], weights=length[sel]))
             observed = float(np.average(hit[sel], weights=length[sel]))
             n_eff = max(float(length[sel].sum()) / options.correlation_length_px, 1.0)
-            slack = 2.0 * np.sqrt(expected * (1 - expected) / n_eff)
-            return observed < options.min_hit_share * expected - slack
+            return _short_of(observed, expected, n_eff, options.min_hit_share)
 
         strips = measured[k][5]
         groups = [use] if cross.any() else []
@@ -671,9 +684,7 @@ def wire_support(
     # many independent stretches.
     fit = {
         k: (
-            float(np.average([m.hit.mean() for m in ms], weights=[len(m.uv) for m in ms]))
-            if ms
-            else 0.0,
+            _hit_share(ms),
             max(0.5 * sum(len(m.uv) for m in ms) / options.correlation_length_px, 1.0),
         )
         for k, (ms, *_) in enumerate(measured)
@@ -682,9 +693,7 @@ def wire_support(
     def fits_worse(o: int, k: int) -> bool:
         """Does wire o land on wire pixels less often than ``min_hit_share`` of the rate at
         which wire k does, beyond chance along its length?"""
-        expected, (observed, n_eff) = fit[k][0], fit[o]
-        slack = 2.0 * np.sqrt(expected * (1 - expected) / n_eff)
-        return observed < options.min_hit_share * expected - slack
+        return _short_of(fit[o][0], fit[k][0], fit[o][1], options.min_hit_share)
 
     # Best supported first: each wire is judged on what the wires accepted before it leave.
     order = sorted(range(len(wires)), key=lambda k: -measured[k][4])
