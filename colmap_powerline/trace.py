@@ -9,7 +9,9 @@ curve through them reaches 77–100 %).
 Once a wire is confirmed its curve predicts where every view sees it. Along the curve, every
 ``step_px`` pixels of the view nearest to it, each view that sees the place looks for the
 wire centre within ``reach_px`` of the projection, across the wire's direction in that view
-(the verification's line template and its sub-pixel peak). A wire centre found at image
+(the verification's line template and its sub-pixel peak); beside another wire's image the
+search stops a pixel clear of that line's response, and a view where it cannot is not asked
+there (:func:`_reach_beside_others`). A wire centre found at image
 offset ``o`` says that the wire point lies on the plane through the camera and that image
 line: one linear equation in the two unknown offsets of the point across the wire's tangent.
 Two views offset across the wires fix both; more views are redundant, and the one that
@@ -182,6 +184,30 @@ def image_normals(view: SceneImage, pts: F64, tangent: F64) -> tuple[F64, F64]:
     return normal, np.einsum("ni,nij->nj", normal, jac)
 
 
+def _reach_beside_others(
+    uv: F64, normal: F64, wire: I64, reach_px: float, side_offset_px: int
+) -> F64:
+    """(N,) how far across each projected place (px) its wire centre may be searched in this
+    view: ``reach_px`` where no other wire passes near; where one does, a whole number of
+    pixels that keeps the search's last sample a pixel clear of the other wire's response
+    (its template's side taps reach ``side_offset_px`` beyond its line); 0 where not even
+    one pixel is clear (the place is ambiguous in this view). The other wire's distance is
+    its offset across this one's image direction: stacked wires that one strip sees 3-4 px
+    apart are measured there, as the separate lines they are."""
+    full = float(reach_px)
+    reach = np.full(len(uv), full)
+    radius = np.ceil(reach_px) + side_offset_px + 1  # beyond it the full reach is clear
+    pairs = cKDTree(uv).query_pairs(radius, output_type="ndarray")
+    if len(pairs) == 0:
+        return reach
+    pairs = pairs[wire[pairs[:, 0]] != wire[pairs[:, 1]]]
+    for a, b in ((pairs[:, 0], pairs[:, 1]), (pairs[:, 1], pairs[:, 0])):
+        across = np.abs(np.einsum("ni,ni->n", uv[b] - uv[a], normal[a]))
+        clear = np.clip(np.floor(across - side_offset_px - 1), 0, None)
+        np.minimum.at(reach, a, np.minimum(clear, full))
+    return reach
+
+
 def _observe(
     view: SceneImage,
     places: _Places,
@@ -190,11 +216,12 @@ def _observe(
     reach_px: float,
     margin_px: int,
     detect: DetectOptions,
-) -> tuple[I64, F64, F64, F64] | None:
-    """One view's observations of the places it sees (no other wire near): (place,
+) -> tuple[I64, F64, F64, F64, npt.NDArray[np.bool_]] | None:
+    """One view's observations of the places it sees (not where another wire passes too
+    near to tell, :func:`_reach_beside_others`): (place,
     Jacobian row across the wire in the image (px per model unit), offset to the wire
-    centre (px; NaN where it found none), the same where a peak stands out (loose)), or
-    None."""
+    centre (px; NaN where it found none), the same where a peak stands out (loose), and
+    whether no other wire narrowed the search there), or None."""
     cand = np.flatnonzero(_roughly_in_view(view, places.pts))
     if len(cand) == 0:
         return None
@@ -203,15 +230,9 @@ def _observe(
     if len(idx) == 0:
         return None
     normal, rows = image_normals(view, places.pts[idx], places.tangent[idx])
-    # A place another wire passes as near in this image is ambiguous here.
-    tree = cKDTree(uv)
-    near = tree.query_pairs(reach_px + 2, output_type="ndarray")
-    other = places.wire[idx[near[:, 0]]] != places.wire[idx[near[:, 1]]] if len(near) else []
-    ambiguous = np.zeros(len(idx), bool)
-    if len(near):
-        ambiguous[near[other].ravel()] = True
-    keep = ~ambiguous & (places.wire[idx] < places.n_traced)
-    idx, uv, normal, rows = idx[keep], uv[keep], normal[keep], rows[keep]
+    reach = _reach_beside_others(uv, normal, places.wire[idx], reach_px, detect.side_offset_px)
+    keep = (reach > 0) & (places.wire[idx] < places.n_traced)
+    idx, uv, normal, rows, reach = idx[keep], uv[keep], normal[keep], rows[keep], reach[keep]
     if len(idx) == 0:
         return None
     px = np.floor(uv).astype(np.int64)
@@ -223,7 +244,10 @@ def _observe(
     direction = image_wire_direction_deg(view, places.pts[idx[len(idx) // 2]], azimuth_deg)
     wm = wire_mask(view, image, direction, (x0, y0, x1, y1))
     del image
-    offset = _wire_offsets(wm.response, uv - [x0, y0], normal, reach_px)
+    offset = np.full(len(idx), np.nan)
+    for r in np.unique(reach):
+        at = reach == r
+        offset[at] = _wire_offsets(wm.response, uv[at] - [x0, y0], normal[at], float(r))
     found = np.isfinite(offset)
     centre = uv[found] + offset[found, None] * normal[found] - [x0, y0]
     cx = np.clip(np.floor(centre[:, 0]).astype(np.int64), 0, wm.mask.shape[1] - 1)
@@ -238,7 +262,13 @@ def _observe(
     strong = cv2.dilate(strong.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
     loose = found.copy()
     loose[np.flatnonzero(found)[~strong[cy, cx]]] = False
-    return idx, rows, np.where(strict, offset, np.nan), np.where(loose, offset, np.nan)
+    return (
+        idx,
+        rows,
+        np.where(strict, offset, np.nan),
+        np.where(loose, offset, np.nan),
+        reach == reach_px,
+    )
 
 
 def _solve(
@@ -271,15 +301,23 @@ class _Solution:
     n_views: npt.NDArray[np.int32]  # (M,) views kept
     normal: F64  # (M, 2, 2) normal matrices (px² per model unit²)
     redundancy: F64  # (M,) smallest redundancy number of the views kept
-    seen: npt.NDArray[np.int32]  # (M,) views that see the place, no other wire near
+    seen: npt.NDArray[np.int32]  # (M,) views that see the place, no other wire near it
     normal_seen: F64  # (M, 2, 2) the normal matrix had they all found the wire
 
 
 def _solve_places(
-    m: int, place: I64, rows: F64, offsets: F64, across: F64, tolerance_px: float
+    m: int,
+    place: I64,
+    rows: F64,
+    offsets: F64,
+    across: F64,
+    tolerance_px: float,
+    clear: npt.NDArray[np.bool_],
 ) -> tuple[_Solution, F64, npt.NDArray[np.bool_]]:
     """Every place's solution from its observations (offset NaN: the view found no wire
-    there), and each observation's residual and whether it was kept."""
+    there), and each observation's residual and whether it was kept. The views that see a
+    place (``seen``, ``normal_seen``) are those whose search no other wire narrowed
+    (``clear``)."""
     x = np.full((m, 2), np.nan)
     rss = np.zeros(m)
     n_views = np.zeros(m, np.int32)
@@ -289,8 +327,8 @@ def _solve_places(
     redundancy = np.zeros(m)
     a_all = np.einsum("nj,nkj->nk", rows, across[place])  # (n, 2)
     normal_seen = np.zeros((m, 2, 2))
-    np.add.at(normal_seen, place, a_all[:, :, None] * a_all[:, None, :])
-    seen = np.bincount(place, minlength=m).astype(np.int32)
+    np.add.at(normal_seen, place[clear], a_all[clear, :, None] * a_all[clear, None, :])
+    seen = np.bincount(place[clear], minlength=m).astype(np.int32)
     found = np.flatnonzero(np.isfinite(offsets))
     order = found[np.argsort(place[found], kind="stable")]
     bounds = np.flatnonzero(np.diff(place[order])) + 1
@@ -315,6 +353,8 @@ class _Observations:
     rows: F64  # (n, 3) Jacobian row across the wire (px per model unit)
     strict: F64  # (n,) offset to the detector's wire centre (px; NaN: none)
     loose: F64  # (n,) offset to a peak that stands out (px; NaN: none)
+    clear: npt.NDArray[np.bool_]  # (n,) no other wire narrowed the search (the view counts
+    # among those that see the place; a narrowed one adds its measurement where it has one)
 
 
 def _look(
@@ -328,7 +368,7 @@ def _look(
     detect: DetectOptions,
 ) -> tuple[_Observations, list[Path]]:
     """Every view's observations of the places (decoding each image that sees one)."""
-    parts: list[tuple[int, tuple[I64, F64, F64, F64]]] = []
+    parts: list[tuple[int, tuple[I64, F64, F64, F64, npt.NDArray[np.bool_]]]] = []
     decoded: list[Path] = []
 
     def look(v: int):
@@ -349,7 +389,12 @@ def _look(
                 parts.append((v, obs))
     if not parts:
         z = np.zeros(0)
-        return _Observations(z.astype(np.int64), z.astype(np.int64), z.reshape(0, 3), z, z), decoded
+        return (
+            _Observations(
+                z.astype(np.int64), z.astype(np.int64), z.reshape(0, 3), z, z, z.astype(bool)
+            ),
+            decoded,
+        )
     return (
         _Observations(
             np.concatenate([o[0] for _, o in parts]),
@@ -357,6 +402,7 @@ def _look(
             np.concatenate([o[1] for _, o in parts]),
             np.concatenate([o[2] for _, o in parts]),
             np.concatenate([o[3] for _, o in parts]),
+            np.concatenate([o[4] for _, o in parts]),
         ),
         decoded,
     )
@@ -377,7 +423,7 @@ def _measure(
     wire = places.wire[obs.place]
     if not bias and len(obs.place):
         sol, res, kept = _solve_places(
-            m, obs.place, obs.rows, obs.strict, places.across, tolerance_px
+            m, obs.place, obs.rows, obs.strict, places.across, tolerance_px, obs.clear
         )
         # From the residuals at places the other views check (more than two views kept).
         checked = kept & (sol.n_views[obs.place] > 2)
@@ -391,7 +437,7 @@ def _measure(
     if bias:
         shift = [bias.get(vk, 0.0) for vk in zip(obs.view.tolist(), wire.tolist(), strict=True)]
         offsets = offsets - np.array(shift)
-    return _solve_places(m, obs.place, obs.rows, offsets, places.across, tolerance_px)[0]
+    return _solve_places(m, obs.place, obs.rows, offsets, places.across, tolerance_px, obs.clear)[0]
 
 
 def _image_noise(sol: _Solution, tolerance_px: float) -> float:

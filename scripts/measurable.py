@@ -10,9 +10,12 @@ each give one equation across the wire's image direction in the two unknown offs
 point across its tangent (as tracing measures it: ``colmap_powerline.trace``). The point is
 *measurable* when at least three views see it and the largest standard deviation they
 predict, at ``--sigma_px`` of image noise per wire centre, is within the 98 % bound tracing
-keeps (``WiresOptions.inlier_distance / 2.33``). Reported per true wire: the measurable
-share of its length, the completeness (within 10 cm, as ``score.py``) over the whole wire,
-over its measurable part and over the rest. Occlusion is ignored (wires are thin).
+keeps (``WiresOptions.inlier_distance / 2.33``). A view does not count where another true
+wire's image passes closer than tracing can tell two lines apart (``--hidden_px``: the line
+template's side offset plus two pixels, as tracing's search narrowed beside another wire):
+there the wire is hidden behind its neighbour in that view. Reported per true wire: the
+measurable share of its length, the completeness (within 10 cm, as ``score.py``) over the
+whole wire, over its measurable part and over the rest.
 """
 
 from __future__ import annotations
@@ -26,20 +29,22 @@ import numpy as np
 import open3d as o3d
 from scipy.spatial import cKDTree
 
+from colmap_powerline.detect import DetectOptions
 from colmap_powerline.scene import load_scene
 from colmap_powerline.trace import image_normals
 from colmap_powerline.wires import WiresOptions
 
 STEP = 0.1  # m between samples along a true wire
+DENSE_STEP = 0.02  # m between the samples of the other wires (well under a pixel)
 TOLERANCE = 0.10  # m, completeness tolerance of the shared scorer
 MARGIN_PX = 20.0
 
 
-def _samples(polyline: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Points every STEP along a polyline and the unit tangents there."""
+def _samples(polyline: np.ndarray, step: float = STEP) -> tuple[np.ndarray, np.ndarray]:
+    """Points every ``step`` along a polyline and the unit tangents there."""
     seg = np.diff(polyline, axis=0)
     s = np.r_[0, np.cumsum(np.linalg.norm(seg, axis=1))]
-    t = np.arange(0, s[-1], STEP)
+    t = np.arange(0, s[-1], step)
     pts = np.c_[[np.interp(t, s, polyline[:, k]) for k in range(3)]].T
     tangent = np.gradient(pts, axis=0)
     tangent /= np.linalg.norm(tangent, axis=1, keepdims=True)
@@ -59,6 +64,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("scene", type=Path)
     ap.add_argument("points", type=Path, help="the run's wire_points.ply (or wires.ply)")
     ap.add_argument("--sigma_px", type=float, default=0.44, help="image noise of a wire centre")
+    ap.add_argument(
+        "--hidden_px",
+        type=float,
+        default=DetectOptions().side_offset_px + 2.0,
+        help="a view does not count where another wire's image is this near (px)",
+    )
     ap.add_argument("--json", type=Path, default=None)
     args = ap.parse_args(argv)
     for p in (args.scene / "gt" / "wires.json", args.scene / "sparse_gt", args.points):
@@ -70,10 +81,13 @@ def main(argv: list[str] | None = None) -> int:
     found = np.asarray(o3d.io.read_point_cloud(str(args.points)).points)
     tree = cKDTree(found) if len(found) else None
     max_sigma = WiresOptions().inlier_distance / 2.33
+    lines = [np.asarray(w["polyline"], np.float64) for w in truth]
+    dense = [_samples(p, DENSE_STEP)[0] for p in lines]
     rows = []
     print("wire        kind     len m  measurable %  compl %  in measurable %  elsewhere %")
-    for w in truth:
-        pts, tangent = _samples(np.asarray(w["polyline"], np.float64))
+    for i, w in enumerate(truth):
+        pts, tangent = _samples(lines[i])
+        others = np.concatenate([d for j, d in enumerate(dense) if j != i])
         horizontal = np.c_[tangent[:, 1], -tangent[:, 0], np.zeros(len(pts))]
         horizontal /= np.linalg.norm(horizontal, axis=1, keepdims=True)
         up = np.cross(horizontal, tangent)
@@ -88,6 +102,12 @@ def main(argv: list[str] | None = None) -> int:
                 & (uv[:, 0] < view.width - MARGIN_PX)
                 & (uv[:, 1] < view.height - MARGIN_PX)
             )
+            if inside.any():
+                # Hidden here: another wire's image is too near to tell the two apart.
+                uvo, _, ino = view.project(others)
+                if ino.any():
+                    d = cKDTree(uvo[ino]).query(uv[inside], distance_upper_bound=args.hidden_px)[0]
+                    inside[np.flatnonzero(inside)[d < args.hidden_px]] = False
             idx = np.flatnonzero(inside)
             if len(idx) == 0:
                 continue

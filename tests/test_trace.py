@@ -11,7 +11,7 @@ import cv2
 import numpy as np
 import pytest
 
-from colmap_powerline.detect import DetectOptions
+from colmap_powerline.detect import DetectOptions, line_response
 from colmap_powerline.evaluate import distance_to_polyline
 from colmap_powerline.pipeline import crop_wire_mask
 from colmap_powerline.synthetic import TrueWire, load_true_wires
@@ -21,10 +21,12 @@ from colmap_powerline.trace import (
     _checked_by_curve,
     _leaves_curve,
     _places,
+    _reach_beside_others,
     _Solution,
     primitive_reach,
     trace_wires,
 )
+from colmap_powerline.verify import _wire_offsets
 from colmap_powerline.wires import FittedWire, WiresOptions, _fit
 
 
@@ -378,3 +380,38 @@ def test_an_end_the_views_find_at_few_places_stops(small_scene, conductors):
     assert ends.max() > cut - 10.0  # grew to where the wire is seen
     assert ends.max() < cut + 2 * TraceOptions().extend  # and at most two rounds past it
     assert np.mean(along(traced.pts_in_world) > cut + 1.0) < 0.02
+
+
+@pytest.mark.parametrize(
+    ("separation", "reach"), [(8.0, 3.0), (5.0, 3.0), (4.5, 2.0), (3.2, 1.0), (2.5, 0.0)]
+)
+def test_the_search_beside_another_wire_stops_a_pixel_clear_of_it(separation, reach):
+    """Two wires' images run side by side (places every 2 px along, 0.3 px of slope between
+    them so the offset across, not the distance between places, counts): each wire's centre
+    is searched only so far that the other's template response (its side taps, 1 px beyond
+    its line) stays a pixel past the last sample: the full 3 px from 5 px apart, whole pixels
+    nearer, none below 3 px (ambiguous). A wire's own places never narrow its search.
+    On an image of the two (the other twice as bright), the narrowed search finds this wire
+    to 0.25 px; 3.2 px apart the full search does not (it takes the other's peak)."""
+    x = np.arange(20.0, 80.0, 2.0)
+    uv = np.r_[np.c_[x, np.full(len(x), 50.0)], np.c_[x + 0.3, np.full(len(x), 50.0 + separation)]]
+    wire = np.r_[np.zeros(len(x), np.int64), np.ones(len(x), np.int64)]
+    normal = np.tile([0.0, 1.0], (len(uv), 1))
+    got = _reach_beside_others(uv, normal, wire, 3.0, DetectOptions().side_offset_px)
+    assert np.all(got[10:-10] == reach)  # away from the lines' ends
+    alone = _reach_beside_others(uv[wire == 0], normal[wire == 0], wire[wire == 0], 3.0, 1)
+    assert np.all(alone == 3.0)
+    if reach == 0.0 or separation >= 5.0:
+        return
+    # A thin bright line at y 50 and one twice as bright `separation` px below it.
+    rows = np.arange(100.0)[:, None]
+    profile = 20 * np.exp(-0.5 * ((rows - 50.0) / 0.6) ** 2)
+    profile += 40 * np.exp(-0.5 * ((rows - 50.0 - separation) / 0.6) ** 2)
+    gray = (60 + np.tile(profile, (1, 100))).astype(np.float32)
+    response = line_response(gray, 0.0)
+    mine = uv[wire == 0][10:-10] + [0.0, 0.5]  # pixel centres: the line's row is 50.5 - 0.5
+    near = _wire_offsets(response, mine, np.array([0.0, 1.0]), reach)
+    assert np.all(np.abs(near) < 0.25)
+    if separation < 3.5:  # the other line's peak within the full search: it takes it
+        full = _wire_offsets(response, mine, np.array([0.0, 1.0]), 3.0)
+        assert not np.any(np.abs(full) < 0.25)
