@@ -33,8 +33,10 @@ detector's wire pixels do. The wires are refitted to their measured and traced p
 traced again past their new ends, ``extend`` at a time, while the views keep finding them
 there, no farther along the line than the measured wires reach. A round's points past an end
 that leave the curve continued by more than ``MAX_BEND`` standard errors (the fit's own,
-from its residuals, and the points') are dropped and that end stops: past a support the next
-span's wire bends away or the line turns, and clutter a peak test took does not follow a
+from its residuals, and the points'; across the wire also how far its vertical plane,
+continued as far, leaves its own confirmed points at its ends: a wire the wind blew out of
+the vertical bows in plan) are dropped and that end stops: past a support the next span's
+wire bends away or the line turns, and clutter a peak test took does not follow a
 catenary. "While the views keep finding them" means at no less than ``MIN_EXTEND_SHARE``
 of the rate at which they find the wire along its confirmed stretch: a round whose end
 they find less often is dropped and that end stops (a field's rows along the line give
@@ -46,6 +48,7 @@ from __future__ import annotations
 import dataclasses
 import logging
 import time
+from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
@@ -596,21 +599,10 @@ def _places(
     )
 
 
-def _prediction_sigma(wire: FittedWire, pts: F64, s: F64, corr: float) -> tuple[F64, F64]:
-    """(len(s),) standard errors of the wire's curve at ``s`` (continued past its ends),
-    across and in height, from its fit to ``pts``: linearised least squares, with the
-    residuals of ``corr`` neighbouring points counted as one (they share image evidence)."""
-    sp, acr, dz = wire.plane_coords(pts)
-    n = len(sp)
-    # Across: the plane, a line c = c0 + slope s.
-    x = np.c_[np.ones(n), sp]
-    cov_a = np.linalg.pinv(x.T @ x) * float(np.var(acr) * n / max(n - 2, 1)) * corr
-    g = np.c_[np.ones(len(s)), s]
-    sig_a = np.sqrt(np.abs(np.einsum("ni,ij,nj->n", g, cov_a, g)))
-    # Height: the catenary's curvature, slope and height at the middle of the points, by
-    # central differences (unlike (k, s0, z0), well conditioned on a short or straight piece,
-    # whose lowest point is far off).
-    s_m = float(np.mean(sp))
+def _height_jacobian(wire: FittedWire, s_m: float) -> Callable[[F64], F64]:
+    """d height / d (curvature, slope, height at ``s_m``) of the wire's catenary, by central
+    differences: unlike (a, s0, z0), well conditioned on a short or straight piece, whose
+    lowest point is far off."""
     k = 1.0 / wire.catenary_a
     theta = np.array([k, k * (s_m - wire.s0), float(wire.z_at(np.array([s_m]))[0])])
     steps = np.array([1e-6, 1e-4, 1e-3])
@@ -624,6 +616,22 @@ def _prediction_sigma(wire: FittedWire, pts: F64, s: F64, corr: float) -> tuple[
             cols.append((catenary_mid(t - s_m, *hi) - catenary_mid(t - s_m, *lo)) / (2 * steps[i]))
         return np.stack(cols, axis=1)
 
+    return jac
+
+
+def _prediction_sigma(wire: FittedWire, pts: F64, s: F64, corr: float) -> tuple[F64, F64]:
+    """(len(s),) standard errors of the wire's curve at ``s`` (continued past its ends),
+    across and in height, from its fit to ``pts``: linearised least squares, with the
+    residuals of ``corr`` neighbouring points counted as one (they share image evidence)."""
+    sp, acr, dz = wire.plane_coords(pts)
+    n = len(sp)
+    # Across: the plane, a line c = c0 + slope s.
+    x = np.c_[np.ones(n), sp]
+    cov_a = np.linalg.pinv(x.T @ x) * float(np.var(acr) * n / max(n - 2, 1)) * corr
+    g = np.c_[np.ones(len(s)), s]
+    sig_a = np.sqrt(np.abs(np.einsum("ni,ij,nj->n", g, cov_a, g)))
+    # Height: the catenary's curvature, slope and height at the middle of the points.
+    jac = _height_jacobian(wire, float(np.mean(sp)))
     j = jac(sp)
     cov_z = np.linalg.pinv(j.T @ j) * float(np.var(dz) * n / max(n - 3, 1)) * corr
     gz = jac(np.asarray(s, np.float64))
@@ -631,18 +639,54 @@ def _prediction_sigma(wire: FittedWire, pts: F64, s: F64, corr: float) -> tuple[
     return sig_a, sig_z
 
 
-def _leaves_curve(wire: FittedWire, pts: F64, new: F64, new_sigma: F64, corr: float) -> float:
+def _continuation_error(wire: FittedWire, pts: F64, depth: float) -> float:
+    """How far the wire's own points within ``depth`` of an end lie across the wire from its
+    vertical plane fitted to the rest and continued over them (the median offset of the half
+    nearest the end, farthest from the rest; the smaller of the two ends, so that a bend at
+    one end does not count). A wire blown out by the wind hangs in a tilted plane, and its
+    path in plan bows away from the straight line of a vertical plane by up to its sag times
+    the sine of the tilt: continued, that line leaves the wire by a few centimetres over a
+    few metres (the real road flight's conductors: 1.4-1.5 cm at 2.5-5 m from the ends of a
+    30 m stretch). In height the tilt changes the curve to second order only, and there a
+    support's bend shows. 0.0 where neither end has a rest at least twice ``depth`` long
+    (a short piece: there the curve's predicted error already says how little it is known)."""
+    sp, acr, _ = wire.plane_coords(pts)
+    x = np.c_[np.ones(len(sp)), sp]
+    errs = []
+    for inside in (sp - wire.s_range[0], wire.s_range[1] - sp):
+        rest = inside > depth
+        held = (inside >= 0) & (inside <= depth)
+        if rest.sum() < MIN_MEASURABLE_PLACES or not held.any() or np.ptp(sp[rest]) < 2 * depth:
+            continue
+        near = held & (inside <= np.median(inside[held]))
+        line = np.linalg.lstsq(x[rest], acr[rest], rcond=None)[0]
+        errs.append(abs(float(np.median(acr[near] - x[near] @ line))))
+    return min(errs, default=0.0)
+
+
+def _leaves_curve(
+    wire: FittedWire,
+    pts: F64,
+    new: F64,
+    new_sigma: F64,
+    corr: float,
+    model_error: float = 0.0,
+) -> float:
     """How far the points ``new`` past one end of the wire lie from its curve, continued, in
     standard errors: the larger of the statistics across the wire and in height, on the
     farther half of them (median offset over the curve's error there and theirs, with
-    ``corr`` neighbouring points counted as one). ``pts``: the points the wire was fitted to;
-    ``new_sigma``: the new points' predicted precision."""
+    ``corr`` neighbouring points counted as one; across, also over ``model_error``, how
+    far its vertical plane continued leaves the wire's own points: :func:`_continuation_error`).
+    ``pts``: the points the wire was fitted to; ``new_sigma``: the new points' predicted
+    precision."""
     s, acr, dz = wire.plane_coords(new)
     d_end = np.minimum(np.abs(s - wire.s_range[0]), np.abs(s - wire.s_range[1]))
     far = d_end >= np.median(d_end)
     sig_a, sig_z = _prediction_sigma(wire, pts, s[far], corr)
     noise = float(np.median(new_sigma[far])) / np.sqrt(max(far.sum() / corr, 1.0))
-    t_across = abs(float(np.median(acr[far]))) / np.hypot(float(np.median(sig_a)), noise)
+    t_across = abs(float(np.median(acr[far]))) / np.linalg.norm(
+        [float(np.median(sig_a)), noise, model_error]
+    )
     t_height = abs(float(np.median(dz[far]))) / np.hypot(float(np.median(sig_z)), noise)
     return max(t_across, t_height)
 
@@ -821,6 +865,14 @@ def trace_wires(
                 matched[1] if matched[1] > reach[1] + options.extend else reach[1],
             )
 
+    # Each wire's vertical plane, continued one extension past the ends of the stretch the
+    # views confirmed, leaves its own points by this much: what the bend test past an end
+    # allows across the wire beside the statistical errors (measured once, so that what a
+    # round took does not loosen the test for the next).
+    model_error = [
+        _continuation_error(w, pts_in_world[w.point_indices], options.extend) for w in wires
+    ]
+
     def _along_limits(w: FittedWire, limits: tuple[float, float]) -> tuple[float, float]:
         """The wire's ``s`` where it reaches the limits along the line."""
         rate = float(w.plane_direction_xy @ along)
@@ -917,7 +969,10 @@ def trace_wires(
                 drop = np.zeros(len(mine), bool)
                 for side in (s_new < w.s_range[0], s_new > w.s_range[1]):
                     if side.sum() >= corr and (
-                        _leaves_curve(w, own, pts[mine][side], sigma[mine][side], corr) > MAX_BEND
+                        _leaves_curve(
+                            w, own, pts[mine][side], sigma[mine][side], corr, model_error[k]
+                        )
+                        > MAX_BEND
                     ):
                         drop |= side
                 idx = np.r_[w.point_indices, base + np.flatnonzero(~drop)]
