@@ -83,6 +83,15 @@ CONSENSUS_SIGMAS = 1.5
 # across the line the true wires so rejected are found at 94 %, the false pairings at 0-8 %.
 MIN_SECOND_LOOK_SHARE = 0.5
 
+# The conductors of a line run side by side at its crossarm's spacing: where two confirmed
+# wires run parallel along at least this share of the shorter one, the offset between them
+# (across and in height) is one of the line's, and a conductor that offset beside any
+# confirmed wire is looked for (:func:`_siblings`).
+MIN_SIBLING_OVERLAP = 0.5
+# Where the views find such a hypothesis at all, it is looked for again at these heights
+# about its offset's, in units of ``CONTINUATION_DISTANCE`` (:func:`_siblings`).
+SIBLING_LIFTS = (-0.5, 0.5, -1.0, 1.0)
+
 # Confirmed wires take the points the views favour in steps of ``WiresOptions.max_gap`` past
 # their ends; this many steps reach past any span.
 MAX_ABSORB_STEPS = 40
@@ -609,6 +618,10 @@ def reconstruct(
             wires, supports, rejected, verified, scene, corridor, options
         )
         decoded += dec
+        wires, supports, verified, dec = _siblings(
+            wires, supports, verified, scene, corridor, options, judge
+        )
+        decoded += dec
         timings["trace"] = time.perf_counter() - t1
     labels = np.full(len(verified), -1, np.int64)
     for w in wires:
@@ -851,6 +864,203 @@ def _second_look(
     )
     wires, supports = _without_members(wires + new, supports + new_sup, corridor, options)
     return wires, supports, verified, decoded + dec
+
+
+def _line_offsets(wires: list[FittedWire]) -> list[tuple[float, float]]:
+    """The offsets (across, height; model units) between confirmed wires that run side by
+    side: parallel within ``CONTINUATION_DISTANCE`` along at least ``MIN_SIBLING_OVERLAP`` of
+    the shorter one, and apart by more than that. Both signs; offsets within
+    ``CONTINUATION_DISTANCE`` of one another counted once."""
+    found: list[tuple[float, float]] = []
+    for i, a in enumerate(wires):
+        for b in wires[i + 1 :]:
+            pts = b.polyline(0.5)
+            s, across, dz = a.plane_coords(pts)
+            inside = (s >= a.s_range[0]) & (s <= a.s_range[1])
+            shorter = min(np.ptp(a.s_range), np.ptp(b.s_range))
+            if inside.sum() * 0.5 < MIN_SIBLING_OVERLAP * shorter:
+                continue
+            across, dz = across[inside], dz[inside]
+            if max(np.ptp(np.percentile(across, [10, 90])), np.ptp(np.percentile(dz, [10, 90]))) > (
+                CONTINUATION_DISTANCE
+            ):
+                continue  # not side by side all along
+            offset = (float(np.median(across)), float(np.median(dz)))
+            if np.hypot(*offset) <= CONTINUATION_DISTANCE:
+                continue
+            for o in (offset, (-offset[0], -offset[1])):
+                if all(np.hypot(o[0] - f[0], o[1] - f[1]) > CONTINUATION_DISTANCE for f in found):
+                    found.append(o)
+    return found
+
+
+def _shifted(wire: FittedWire, across: float, dz: float, wire_id: int) -> FittedWire:
+    """The wire moved across its plane by ``across`` and up by ``dz``, without points."""
+    d = wire.plane_direction_xy
+    return dataclasses.replace(
+        wire,
+        wire_id=wire_id,
+        plane_origin_xy=wire.plane_origin_xy + across * np.array([d[1], -d[0]]),
+        z0=wire.z0 + dz,
+        point_indices=np.zeros(0, np.int64),
+    )
+
+
+def _siblings(
+    wires: list[FittedWire],
+    supports: list[WireSupport],
+    verified: VerifiedPoints,
+    scene: Scene,
+    corridor: WireCorridor,
+    options: ReconstructionOptions,
+    judge: Callable[[list[FittedWire]], list[WireSupport]],
+) -> tuple[list[FittedWire], list[WireSupport], VerifiedPoints, list[Path]]:
+    """The conductors the line's own spacing predicts beside the confirmed wires, where the
+    views find them: each confirmed wire moved by each offset between confirmed wires that
+    run side by side (:func:`_line_offsets`), where no confirmed wire lies along most of it
+    (between that wire's ends: the next span's conductor lies on a wire's curve continued),
+    traced as a hypothesis (every view checked by the others) and kept where the views that
+    would fix it find it at ``MIN_TRACED_SHARE`` of its places or more, then traced in full.
+
+    A conductor no pair of images matched along a span (its image lines paired with no
+    other, or its matches lost among a field's rows) is never a candidate; its neighbours
+    are. On the real road flight the road-side conductor of one span, plain in the images,
+    is found so at 45 % of its places, and the same hypothesis 0.5-1 m beside it at none.
+    Its support is measured as the pairs that measured its neighbour would see it (the
+    camera geometry of a wire a metre away is the same)."""
+    offsets = _line_offsets(wires)
+    if not offsets:
+        return wires, supports, verified, []
+
+    def covered(w: FittedWire, others: list[FittedWire], in_plan: bool = False) -> bool:
+        # Most of it lies on another wire between that wire's ends (not on its curve
+        # continued: past a pole the next span's conductor lies near that); in plan: above
+        # or below it.
+        p = w.polyline(0.5)
+        on = np.zeros(len(p), bool)
+        for o in others:
+            s, across, _ = o.plane_coords(p)
+            off = np.abs(across) if in_plan else o.distance(p)
+            on |= (s >= o.s_range[0]) & (s <= o.s_range[1]) & (off < CONTINUATION_DISTANCE)
+        return bool(on.mean() >= MIN_SIBLING_OVERLAP)
+
+    cand: list[FittedWire] = []
+    source: list[int] = []
+    for k, w in enumerate(wires):
+        for across, dz in offsets:
+            h = _shifted(w, across, dz, len(cand))
+            if not covered(h, wires + cand):
+                cand.append(h)
+                source.append(k)
+    if not cand:
+        return wires, supports, verified, []
+    look = dataclasses.replace(options.trace, max_rounds=0)
+
+    def looks(group: list[int], lift: float) -> tuple[list[WireSupport], list[Path]]:
+        hs = [
+            dataclasses.replace(base[i], wire_id=g, z0=base[i].z0 + lift * CONTINUATION_DISTANCE)
+            for g, i in enumerate(group)
+        ]
+        sup = [dataclasses.replace(supports[source[i]], wire_id=g) for g, i in enumerate(group)]
+        _, out, _, dec = _traced(
+            hs, sup, verified, scene, corridor, options, look, wires, MIN_REDUNDANCY
+        )
+        return out, dec
+
+    base = list(cand)
+    # Looked for together where they lie apart in the images; two that one view sees within
+    # a search's reach of each other would each take the other's image for a neighbour's
+    # (one above another shows so in every nadir view).
+    depth = float(np.median(scene.centers_in_world[:, 2]) - corridor.height)
+    apart = (options.trace.reach_px + 3) * scene.gsd_at_depth(depth)
+    groups: list[list[int]] = []
+    for i in range(len(cand)):
+        free = (g for g in groups if not any(_near_in_plan(cand[i], cand[j], apart) for j in g))
+        group = next(free, None)
+        if group is None:
+            groups.append([i])
+        else:
+            group.append(i)
+    looked: list[WireSupport] = [supports[k] for k in source]
+    decoded: list[Path] = []
+    for group in groups:
+        out, dec = looks(group, 0.0)
+        decoded += dec
+        for g, i in enumerate(group):
+            looked[i] = out[g]
+    # One conductor's height beside another changes from span to span by up to what a curve
+    # continued is off: where the views find a hypothesis at all, it is looked for again a
+    # little higher and lower, each on its own, and taken at its best height (on the road
+    # flight the road-side conductor of one span is found at 16 % of its places at its
+    # offset's height, at 77 % 14 cm higher).
+    for i in range(len(cand)):
+        if not looked[i].traced_share:
+            continue
+        for lift in SIBLING_LIFTS:
+            out, dec = looks([i], lift)
+            decoded += dec
+            if (out[0].traced_share or 0.0) > (looked[i].traced_share or 0.0):
+                looked[i] = out[0]
+                cand[i] = dataclasses.replace(base[i], z0=base[i].z0 + lift * CONTINUATION_DISTANCE)
+    shares = [s.traced_share for s in looked]
+    # Best found first; of two at one place in plan, the better.
+    taken: list[int] = []
+    for i in sorted(range(len(cand)), key=lambda i: -(shares[i] or 0.0)):
+        f = shares[i]
+        if f is None or f < MIN_TRACED_SHARE:
+            break
+        if not covered(cand[i], [cand[j] for j in taken], in_plan=True):
+            taken.append(i)
+    logger.info(
+        "siblings: %d hypotheses at the line's %d offsets beside %d wires; found by the views "
+        "at %s of their places%s",
+        len(cand),
+        len(offsets),
+        len(wires),
+        sorted((round(f, 2) for f in shares if f is not None), reverse=True),
+        f"; {len(taken)} kept" if taken else "",
+    )
+    if not taken:
+        return wires, supports, verified, decoded
+    n = len(wires)
+    new = [dataclasses.replace(cand[i], wire_id=n + j) for j, i in enumerate(taken)]
+    new_sup = [dataclasses.replace(looked[i], wire_id=n + j) for j, i in enumerate(taken)]
+    new, new_sup, verified, dec = _traced(
+        new, new_sup, verified, scene, corridor, options, context=wires,
+        min_redundancy=MIN_REDUNDANCY,
+    )  # fmt: skip
+    # The support as the pairs that measured the neighbour would see it.
+    paired = verified.pair_index
+    for j, i in enumerate(taken):
+        own = wires[source[i]].point_indices
+        as_seen = dataclasses.replace(new[j], point_indices=own[paired[own] >= 0])
+        measured = judge([as_seen])[0]
+        new_sup[j] = dataclasses.replace(
+            measured, wire_id=new[j].wire_id, traced_share=new_sup[j].traced_share
+        )
+        logger.info(
+            "siblings: a %.0f m wire %.2f across and %.2f above wire %d, found by the views "
+            "that fix it at %.0f %% of its places: kept",
+            new[j].s_range[1] - new[j].s_range[0],
+            *[float(v) for v in _offset_of(new[j], wires[source[i]])],
+            wires[source[i]].wire_id,
+            100 * (new_sup[j].traced_share or 0.0),
+        )
+    wires, supports = _without_untraced(wires + new, supports + new_sup)
+    wires, supports = _without_members(wires, supports, corridor, options)
+    return wires, supports, verified, decoded + dec
+
+
+def _near_in_plan(a: FittedWire, b: FittedWire, distance: float) -> bool:
+    """Whether ``b`` comes within ``distance`` of ``a`` in plan between ``a``'s ends."""
+    s, across, _ = a.plane_coords(b.polyline(0.5))
+    return bool(np.any((s >= a.s_range[0]) & (s <= a.s_range[1]) & (np.abs(across) < distance)))
+
+
+def _offset_of(wire: FittedWire, other: FittedWire) -> tuple[float, float]:
+    """The median offset (across, height) of ``wire`` from ``other``."""
+    _, across, dz = other.plane_coords(wire.polyline(0.5))
+    return float(np.median(across)), float(np.median(dz))
 
 
 def _without_untraced(

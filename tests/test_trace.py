@@ -458,3 +458,83 @@ def test_the_search_beside_another_wire_stops_a_pixel_clear_of_it(separation, re
     if separation < 3.5:  # the other line's peak within the full search: it takes it
         full = _wire_offsets(response, mine, np.array([0.0, 1.0]), 3.0)
         assert not np.any(np.abs(full) < 0.25)
+
+
+def test_the_line_offsets_are_those_of_wires_side_by_side():
+    """Two wires that run side by side along most of the shorter give their offset, both
+    signs, once; a wire that crosses them at an angle or sags differently (its height offset
+    changing along the span by more than the continuation distance) gives none; a moved
+    copy is the same curve moved."""
+    from colmap_powerline.pipeline import _line_offsets, _shifted
+
+    def wire(wire_id, y, z, a=500.0, lo=-40.0, hi=40.0, direction=(1.0, 0.0)):
+        return FittedWire(
+            wire_id=wire_id, plane_origin_xy=np.array([0.0, y]),
+            plane_direction_xy=np.array(direction) / np.linalg.norm(direction),
+            catenary_a=a, s0=0.0, z0=z, s_range=(lo, hi), point_indices=np.zeros(0, np.int64),
+            rms_residual=0.02,
+        )  # fmt: skip
+
+    a, b = wire(0, 0.0, 20.0), wire(1, 1.1, 20.0, lo=-10.0, hi=50.0)
+    offsets = _line_offsets([a, b])
+    assert len(offsets) == 2
+    assert {round(o[0], 2) for o in offsets} == {1.1, -1.1}
+    assert all(abs(o[1]) < 1e-9 for o in offsets)
+    # Sagging differently (a = 150 m: 5 m against 1.6 m over the span) or crossing at 10°.
+    assert _line_offsets([a, wire(1, 1.1, 20.0, a=150.0)]) == []
+    assert _line_offsets([a, wire(1, 1.1, 20.0, direction=(1.0, np.tan(np.radians(10))))]) == []
+    # Side by side along a fifth of the shorter only.
+    assert _line_offsets([a, wire(1, 1.1, 20.0, lo=30.0, hi=90.0)]) == []
+    # Moved by the offset of b (and half a metre up), a lies on b.
+    _, b_across, _ = a.plane_coords(b.polyline(1.0))
+    moved = _shifted(a, float(np.median(b_across)), 0.5, 7)
+    assert moved.wire_id == 7 and len(moved.point_indices) == 0
+    _, across, dz = b.plane_coords(moved.polyline(1.0))
+    assert np.allclose(across, 0.0) and np.allclose(dz, 0.5)
+
+
+def test_a_conductor_the_line_spacing_predicts_is_found_beside_the_confirmed_ones(
+    small_scene, conductors
+):
+    """Confirmed: the two lower conductors side by side and the top one on one side (its
+    neighbour never hypothesised). Moved by the offsets between them, the confirmed wires
+    predict the top conductor's neighbour and places where no wire hangs; the views find the
+    first along most of the span, on the true wire, and none of the others."""
+    from colmap_powerline.pairs import WireCorridor
+    from colmap_powerline.pipeline import ReconstructionOptions, _siblings
+    from colmap_powerline.verify import VerifiedPoints
+
+    by_height = sorted(conductors, key=lambda t: (t.attach_a[2], t.attach_a[1]))
+    low, top = by_height[:2], by_height[-2:]
+    # The top conductor exactly above a lower one, and its neighbour above the other.
+    top_above = [
+        min(top, key=lambda t: np.linalg.norm(np.subtract(t.attach_a[:2], lw.attach_a[:2])))
+        for lw in low
+    ]  # noqa: E501
+    confirmed, pts = _with_points(
+        [_curve(low[0], 0, 0.1, 0.9, 0.0), _curve(low[1], 1, 0.1, 0.9, 0.0),
+         _curve(top_above[0], 2, 0.1, 0.9, 0.0)]
+    )  # fmt: skip
+    missing = top_above[1]
+    n = len(pts)
+    ones = np.ones(n, np.int32)
+    verified = VerifiedPoints(
+        pts, ones, ones, ones, ones, np.full(n, 0.999), 0 * ones, np.ones(n, bool), [],
+        np.full(3, 0.8), [], np.arange(n),
+    )  # fmt: skip
+    corridor = WireCorridor(
+        azimuth_deg=_azimuth(confirmed[0]), centre_xy=np.zeros(2), half_width=30.0,
+        wires_half_width=10.0, s_range=(-60.0, 60.0), height=20.0, height_range=(10.0, 40.0),
+        from_images=True, measured=True,
+    )  # fmt: skip
+    sup = [_support(k, 1.0, 0.9) for k in range(3)]
+    wires, out_sup, out, _ = _siblings(
+        confirmed, sup, verified, small_scene, corridor, ReconstructionOptions(),
+        lambda ws: [_support(w.wire_id, 1.0) for w in ws],
+    )  # fmt: skip
+    assert len(wires) == 4 and [w.wire_id for w in wires] == [0, 1, 2, 3]
+    new = wires[3]
+    d = distance_to_polyline(out.pts_in_world[new.point_indices], missing.polyline(0.05))
+    assert np.median(d) < 0.04 and np.mean(d < 0.1) > 0.95
+    assert new.s_range[1] - new.s_range[0] > 0.7 * missing.length_m
+    assert out_sup[3].traced_share is not None and out_sup[3].traced_share >= 0.5
