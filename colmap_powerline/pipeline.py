@@ -761,11 +761,12 @@ def _traced(
     context: list[FittedWire] | None = None,
     min_redundancy: float = 0.0,
     primitives: npt.NDArray[np.float64] | None = None,
+    groups: list[int] | None = None,
 ) -> tuple[list[FittedWire], list[WireSupport], VerifiedPoints, list[Path]]:
     """The wires traced in every view (:func:`trace_wires`): refitted, their traced points
     added to the measured ones, their ``traced_share`` in the support (``primitives``: the
     pairs' matches, which may take tracing farther along the line than the measured wires
-    reach)."""
+    reach; ``groups``: each wire's look, see :func:`trace_wires`)."""
     wires, traced = trace_wires(
         scene,
         wires,
@@ -782,6 +783,7 @@ def _traced(
         min_redundancy,
         options.verify.template_length_px,
         primitives,
+        groups,
     )
     supports = [
         dataclasses.replace(s, traced_share=None if np.isnan(f) else round(float(f), 3))
@@ -956,51 +958,48 @@ def _siblings(
         return wires, supports, verified, []
     look = dataclasses.replace(options.trace, max_rounds=0)
 
-    def looks(group: list[int], lift: float) -> tuple[list[WireSupport], list[Path]]:
+    def looks(items: list[tuple[int, float]]) -> tuple[list[WireSupport], list[Path]]:
+        # Each hypothesis (candidate, lift) is looked for as if alone: one that one view sees
+        # within a search's reach of another would otherwise take the other's image for a
+        # neighbour's (one above another shows so in every nadir view), but all are looked
+        # for from one read of each image.
         hs = [
             dataclasses.replace(base[i], wire_id=g, z0=base[i].z0 + lift * CONTINUATION_DISTANCE)
-            for g, i in enumerate(group)
+            for g, (i, lift) in enumerate(items)
         ]
-        sup = [dataclasses.replace(supports[source[i]], wire_id=g) for g, i in enumerate(group)]
+        sup = [
+            dataclasses.replace(supports[source[i]], wire_id=g) for g, (i, _) in enumerate(items)
+        ]
         _, out, _, dec = _traced(
-            hs, sup, verified, scene, corridor, options, look, wires, MIN_REDUNDANCY
+            hs,
+            sup,
+            verified,
+            scene,
+            corridor,
+            options,
+            look,
+            wires,
+            MIN_REDUNDANCY,
+            groups=list(range(len(items))),
         )
         return out, dec
 
     base = list(cand)
-    # Looked for together where they lie apart in the images; two that one view sees within
-    # a search's reach of each other would each take the other's image for a neighbour's
-    # (one above another shows so in every nadir view).
-    depth = float(np.median(scene.centers_in_world[:, 2]) - corridor.height)
-    apart = (options.trace.reach_px + 3) * scene.gsd_at_depth(depth)
-    groups: list[list[int]] = []
-    for i in range(len(cand)):
-        free = (g for g in groups if not any(_near_in_plan(cand[i], cand[j], apart) for j in g))
-        group = next(free, None)
-        if group is None:
-            groups.append([i])
-        else:
-            group.append(i)
-    looked: list[WireSupport] = [supports[k] for k in source]
-    decoded: list[Path] = []
-    for group in groups:
-        out, dec = looks(group, 0.0)
-        decoded += dec
-        for g, i in enumerate(group):
-            looked[i] = out[g]
+    looked, decoded = looks([(i, 0.0) for i in range(len(cand))])
     # One conductor's height beside another changes from span to span by up to what a curve
     # continued is off: where the views find a hypothesis at all, it is looked for again a
-    # little higher and lower, each on its own, and taken at its best height (on the road
-    # flight the road-side conductor of one span is found at 16 % of its places at its
-    # offset's height, at 77 % 14 cm higher).
-    for i in range(len(cand)):
-        if not looked[i].traced_share:
-            continue
-        for lift in SIBLING_LIFTS:
-            out, dec = looks([i], lift)
-            decoded += dec
-            if (out[0].traced_share or 0.0) > (looked[i].traced_share or 0.0):
-                looked[i] = out[0]
+    # little higher and lower, and taken at its best height (on the road flight the
+    # road-side conductor of one span is found at 16 % of its places at its offset's
+    # height, at 77 % 14 cm higher).
+    lifted = [
+        (i, lift) for i in range(len(cand)) if looked[i].traced_share for lift in SIBLING_LIFTS
+    ]
+    if lifted:
+        out, dec = looks(lifted)
+        decoded += dec
+        for (i, lift), o in zip(lifted, out, strict=True):
+            if (o.traced_share or 0.0) > (looked[i].traced_share or 0.0):
+                looked[i] = o
                 cand[i] = dataclasses.replace(base[i], z0=base[i].z0 + lift * CONTINUATION_DISTANCE)
     shares = [s.traced_share for s in looked]
     # Best found first; of two at one place in plan, the better.
@@ -1049,12 +1048,6 @@ def _siblings(
     wires, supports = _without_untraced(wires + new, supports + new_sup)
     wires, supports = _without_members(wires, supports, corridor, options)
     return wires, supports, verified, decoded + dec
-
-
-def _near_in_plan(a: FittedWire, b: FittedWire, distance: float) -> bool:
-    """Whether ``b`` comes within ``distance`` of ``a`` in plan between ``a``'s ends."""
-    s, across, _ = a.plane_coords(b.polyline(0.5))
-    return bool(np.any((s >= a.s_range[0]) & (s <= a.s_range[1]) & (np.abs(across) < distance)))
 
 
 def _offset_of(wire: FittedWire, other: FittedWire) -> tuple[float, float]:

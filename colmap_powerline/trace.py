@@ -48,7 +48,7 @@ from __future__ import annotations
 import dataclasses
 import logging
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
@@ -161,6 +161,8 @@ class _Places:
     tangent: F64  # (M, 3)
     n_traced: int  # wires numbered from this on are context: they make places near them
     # ambiguous in a view, and are not measured
+    group: I64 | None = None  # (wires + context,) the look each wire belongs to (context:
+    # -1, beside every look): wires of different looks do not narrow each other's search
 
 
 def _frames(wire: FittedWire, s: F64) -> tuple[F64, F64, F64]:
@@ -188,7 +190,12 @@ def image_normals(view: SceneImage, pts: F64, tangent: F64) -> tuple[F64, F64]:
 
 
 def _reach_beside_others(
-    uv: F64, normal: F64, wire: I64, reach_px: float, side_offset_px: int
+    uv: F64,
+    normal: F64,
+    wire: I64,
+    reach_px: float,
+    side_offset_px: int,
+    group: I64 | None = None,
 ) -> F64:
     """(N,) how far across each projected place (px) its wire centre may be searched in this
     view: ``reach_px`` where no other wire passes near; where one does, a whole number of
@@ -196,7 +203,8 @@ def _reach_beside_others(
     (its template's side taps reach ``side_offset_px`` beyond its line); 0 where not even
     one pixel is clear (the place is ambiguous in this view). The other wire's distance is
     its offset across this one's image direction: stacked wires that one strip sees 3-4 px
-    apart are measured there, as the separate lines they are."""
+    apart are measured there, as the separate lines they are. ``group`` (per place): places
+    of two different looks (both ≥ 0) are not each other's neighbours."""
     full = float(reach_px)
     reach = np.full(len(uv), full)
     radius = np.ceil(reach_px) + side_offset_px + 1  # beyond it the full reach is clear
@@ -204,6 +212,9 @@ def _reach_beside_others(
     if len(pairs) == 0:
         return reach
     pairs = pairs[wire[pairs[:, 0]] != wire[pairs[:, 1]]]
+    if group is not None:
+        ga, gb = group[pairs[:, 0]], group[pairs[:, 1]]
+        pairs = pairs[(ga == gb) | (ga < 0) | (gb < 0)]
     for a, b in ((pairs[:, 0], pairs[:, 1]), (pairs[:, 1], pairs[:, 0])):
         across = np.abs(np.einsum("ni,ni->n", uv[b] - uv[a], normal[a]))
         clear = np.clip(np.floor(across - side_offset_px - 1), 0, None)
@@ -233,7 +244,14 @@ def _observe(
     if len(idx) == 0:
         return None
     normal, rows = image_normals(view, places.pts[idx], places.tangent[idx])
-    reach = _reach_beside_others(uv, normal, places.wire[idx], reach_px, detect.side_offset_px)
+    reach = _reach_beside_others(
+        uv,
+        normal,
+        places.wire[idx],
+        reach_px,
+        detect.side_offset_px,
+        None if places.group is None else places.group[places.wire[idx]],
+    )
     keep = (reach > 0) & (places.wire[idx] < places.n_traced)
     idx, uv, normal, rows, reach = idx[keep], uv[keep], normal[keep], rows[keep], reach[keep]
     if len(idx) == 0:
@@ -568,9 +586,10 @@ def _places(
     ranges: list[list[tuple[float, float]]],
     step: F64,
     context: list[FittedWire],
+    groups: Sequence[int] | None = None,
 ) -> _Places | None:
     """Places every ``step[k]`` over the ``ranges`` of each wire, then over the whole of
-    each context wire (None: no place on the wires)."""
+    each context wire (None: no place on the wires); ``groups``: each wire's look."""
     if not any(hi > lo for rs in ranges for lo, hi in rs):
         return None
     wires = wires + context
@@ -596,6 +615,7 @@ def _places(
         np.concatenate(across),
         np.concatenate(tangent),
         len(wires) - len(context),
+        None if groups is None else np.r_[np.asarray(groups, np.int64), np.full(len(context), -1)],
     )
 
 
@@ -776,6 +796,7 @@ def trace_wires(
     min_redundancy: float = 0.0,
     template_length_px: int = 25,
     primitives: F64 | None = None,
+    groups: Sequence[int] | None = None,
 ) -> tuple[list[FittedWire], TracedPoints]:
     """Measure each confirmed wire in every view that sees it (module docstring).
 
@@ -795,6 +816,10 @@ def trace_wires(
         primitives: (M, 3) the pairs' matches, verified or not: the wires are traced as far
             along the line as runs of them continue a wire's curve (:func:`primitive_reach`),
             when that is more than ``options.extend`` farther than the measured wires reach.
+        groups: (len(wires),) each wire's look, ≥ 0: wires of different looks are traced
+            from the same image reads as if each look were alone (beside each other in a
+            view, they do not narrow each other's search); hypotheses that exclude each other
+            are looked for so at once. None: one look.
 
     Returns:
         The wires refitted to their measured and traced points (indices past
@@ -881,7 +906,7 @@ def trace_wires(
         return (min(a, b), max(a, b))
 
     for round_ in range(options.max_rounds + 1):
-        places = _places(wires, ranges, step, context)
+        places = _places(wires, ranges, step, context, groups)
         if places is None:
             break
         obs, dec = _look(

@@ -444,6 +444,13 @@ def test_the_search_beside_another_wire_stops_a_pixel_clear_of_it(separation, re
     assert np.all(got[10:-10] == reach)  # away from the lines' ends
     alone = _reach_beside_others(uv[wire == 0], normal[wire == 0], wire[wire == 0], 3.0, 1)
     assert np.all(alone == 3.0)
+    # Two hypotheses looked for from one read as if each were alone: different looks do not
+    # narrow each other's search; a context wire (look -1) narrows every look's.
+    side = DetectOptions().side_offset_px
+    apart = _reach_beside_others(uv, normal, wire, 3.0, side, wire.copy())
+    assert np.all(apart == 3.0)
+    ctx = _reach_beside_others(uv, normal, wire, 3.0, side, np.where(wire == 1, -1, 0))
+    assert np.all(ctx[10:-10] == got[10:-10])
     if reach == 0.0 or separation >= 5.0:
         return
     # A thin bright line at y 50 and one twice as bright `separation` px below it.
