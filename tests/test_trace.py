@@ -74,6 +74,25 @@ def _trace(scene, wires, pts, **kwargs):
     )
 
 
+def _verified_and_corridor(pts, wire):
+    """Measured points every view confirms, and a corridor along ``wire`` 20 m up."""
+    from colmap_powerline.pairs import WireCorridor
+    from colmap_powerline.verify import VerifiedPoints
+
+    n = len(pts)
+    ones = np.ones(n, np.int32)
+    verified = VerifiedPoints(
+        pts, ones, ones, ones, ones, np.full(n, 0.999), 0 * ones, np.ones(n, bool), [],
+        np.full(3, 0.8), [], np.arange(n),
+    )  # fmt: skip
+    corridor = WireCorridor(
+        azimuth_deg=_azimuth(wire), centre_xy=np.zeros(2), half_width=30.0,
+        wires_half_width=10.0, s_range=(-60.0, 60.0), height=20.0, height_range=(10.0, 40.0),
+        from_images=True, measured=True,
+    )  # fmt: skip
+    return verified, corridor
+
+
 def _azimuth(w: FittedWire) -> float:
     return float(np.degrees(np.arctan2(w.plane_direction_xy[0], w.plane_direction_xy[1])))
 
@@ -174,9 +193,7 @@ def test_wires_the_views_would_fix_but_do_not_find_are_dropped(conductors):
 def test_a_rejected_wire_the_views_find_gets_a_second_look(small_scene, conductors):
     """Of the wires the hit rates rejected, a true conductor joins the wires (traced in
     full); a curve where no wire hangs, and a stretch of a wire already there, do not."""
-    from colmap_powerline.pairs import WireCorridor
     from colmap_powerline.pipeline import ReconstructionOptions, _second_look
-    from colmap_powerline.verify import VerifiedPoints
 
     confirmed = [_curve(conductors[0], 0, 0.1, 0.9, 0.0)]
     rejected = [
@@ -185,17 +202,7 @@ def test_a_rejected_wire_the_views_find_gets_a_second_look(small_scene, conducto
         _curve(conductors[0], 3, 0.3, 0.6, 0.0),  # a stretch of the confirmed wire
     ]
     both, pts = _with_points(confirmed + rejected)
-    n = len(pts)
-    ones = np.ones(n, np.int32)
-    verified = VerifiedPoints(
-        pts, ones, ones, ones, ones, np.full(n, 0.999), 0 * ones, np.ones(n, bool), [],
-        np.full(3, 0.8), [], np.arange(n),
-    )  # fmt: skip
-    corridor = WireCorridor(
-        azimuth_deg=_azimuth(confirmed[0]), centre_xy=np.zeros(2), half_width=30.0,
-        wires_half_width=10.0, s_range=(-60.0, 60.0), height=20.0, height_range=(10.0, 40.0),
-        from_images=True, measured=True,
-    )  # fmt: skip
+    verified, corridor = _verified_and_corridor(pts, confirmed[0])
     wires, sup, out, _ = _second_look(
         both[:1],
         [_support(0, 1.0, 0.9)],
@@ -507,9 +514,7 @@ def test_a_conductor_the_line_spacing_predicts_is_found_beside_the_confirmed_one
     neighbour never hypothesised). Moved by the offsets between them, the confirmed wires
     predict the top conductor's neighbour and places where no wire hangs; the views find the
     first along most of the span, on the true wire, and none of the others."""
-    from colmap_powerline.pairs import WireCorridor
     from colmap_powerline.pipeline import ReconstructionOptions, _siblings
-    from colmap_powerline.verify import VerifiedPoints
 
     by_height = sorted(conductors, key=lambda t: (t.attach_a[2], t.attach_a[1]))
     low, top = by_height[:2], by_height[-2:]
@@ -523,17 +528,7 @@ def test_a_conductor_the_line_spacing_predicts_is_found_beside_the_confirmed_one
          _curve(top_above[0], 2, 0.1, 0.9, 0.0)]
     )  # fmt: skip
     missing = top_above[1]
-    n = len(pts)
-    ones = np.ones(n, np.int32)
-    verified = VerifiedPoints(
-        pts, ones, ones, ones, ones, np.full(n, 0.999), 0 * ones, np.ones(n, bool), [],
-        np.full(3, 0.8), [], np.arange(n),
-    )  # fmt: skip
-    corridor = WireCorridor(
-        azimuth_deg=_azimuth(confirmed[0]), centre_xy=np.zeros(2), half_width=30.0,
-        wires_half_width=10.0, s_range=(-60.0, 60.0), height=20.0, height_range=(10.0, 40.0),
-        from_images=True, measured=True,
-    )  # fmt: skip
+    verified, corridor = _verified_and_corridor(pts, confirmed[0])
     sup = [_support(k, 1.0, 0.9) for k in range(3)]
     wires, out_sup, out, _ = _siblings(
         confirmed, sup, verified, small_scene, corridor, ReconstructionOptions(),
