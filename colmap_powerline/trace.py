@@ -9,9 +9,13 @@ curve through them reaches 77–100 %).
 Once a wire is confirmed its curve predicts where every view sees it. Along the curve, every
 ``step_px`` pixels of the view nearest to it, each view that sees the place looks for the
 wire centre within ``reach_px`` of the projection, across the wire's direction in that view
-(the verification's line template and its sub-pixel peak); beside another wire's image the
-search stops a pixel clear of that line's response, and a view where it cannot is not asked
-there (:func:`_reach_beside_others`). A wire centre found at image
+(the verification's line template and its sub-pixel peak). Beside another wire's image
+(within the response's reach) both lines are fitted at once: the response across them is
+taken as the sum of two copies of the view's own line profile, measured on its lone places
+(:func:`_line_profile`, :func:`_joint_offsets`), where the two lie farther apart than that
+profile's core is wide; nearer, or where the view has too few lone places to measure its
+profile, the search stops a pixel clear of the other line's response, and a view where it
+cannot is not asked there (:func:`_reach_beside_others`). A wire centre found at image
 offset ``o`` says that the wire point lies on the plane through the camera and that image
 line: one linear equation in the two unknown offsets of the point across the wire's tangent.
 Two views offset across the wires fix both; more views are redundant, and the one that
@@ -73,6 +77,7 @@ from .wires import FittedWire, WiresOptions, catenary_mid, refit
 logger = logging.getLogger(__name__)
 
 F64 = npt.NDArray[np.float64]
+F32 = npt.NDArray[np.float32]
 I64 = npt.NDArray[np.int64]
 
 
@@ -205,21 +210,160 @@ def _reach_beside_others(
     its offset across this one's image direction: stacked wires that one strip sees 3-4 px
     apart are measured there, as the separate lines they are. ``group`` (per place): places
     of two different looks (both ≥ 0) are not each other's neighbours."""
+    return _beside_others(uv, normal, wire, reach_px, side_offset_px, group)[0]
+
+
+def _beside_others(
+    uv: F64,
+    normal: F64,
+    wire: I64,
+    reach_px: float,
+    side_offset_px: int,
+    group: I64 | None = None,
+) -> tuple[F64, F64]:
+    """(:func:`_reach_beside_others`, and the signed offset (px, along each place's normal)
+    of the nearest other wire's image within reach of its response; NaN: none)."""
     full = float(reach_px)
     reach = np.full(len(uv), full)
+    near = np.full(len(uv), np.nan)
     radius = np.ceil(reach_px) + side_offset_px + 1  # beyond it the full reach is clear
     pairs = cKDTree(uv).query_pairs(radius, output_type="ndarray")
     if len(pairs) == 0:
-        return reach
+        return reach, near
     pairs = pairs[wire[pairs[:, 0]] != wire[pairs[:, 1]]]
     if group is not None:
         ga, gb = group[pairs[:, 0]], group[pairs[:, 1]]
         pairs = pairs[(ga == gb) | (ga < 0) | (gb < 0)]
+    nearest = np.full(len(uv), np.inf)
     for a, b in ((pairs[:, 0], pairs[:, 1]), (pairs[:, 1], pairs[:, 0])):
-        across = np.abs(np.einsum("ni,ni->n", uv[b] - uv[a], normal[a]))
+        signed = np.einsum("ni,ni->n", uv[b] - uv[a], normal[a])
+        across = np.abs(signed)
         clear = np.clip(np.floor(across - side_offset_px - 1), 0, None)
         np.minimum.at(reach, a, np.minimum(clear, full))
-    return reach
+        np.minimum.at(nearest, a, across)
+        # The signed offset of the nearest (ties: either).
+        at = across <= nearest[a]
+        near[a[at]] = signed[at]
+    near[np.abs(near) > radius] = np.nan
+    return reach, near
+
+
+def _samples_across(response: F32, uv: F64, normal: F64, steps: F64) -> F64:
+    """(N, len(steps)) the signed response sampled (bilinear) at ``uv + steps * normal``
+    (pixel-centre coordinates, COLMAP's convention)."""
+    if len(uv) == 0:
+        return np.zeros((0, len(steps)))
+    xy = uv[:, None, :] - 0.5 + steps[None, :, None] * normal[:, None, :]
+    flat = xy.reshape(-1, 2).astype(np.float32)
+    width = 4096  # cv2.remap maps must stay below 32767 px a side
+    pad = (-len(flat)) % width
+    flat = np.concatenate([flat, np.zeros((pad, 2), np.float32)]).reshape(-1, width, 2)
+    sampled = cv2.remap(
+        response.astype(np.float32),
+        flat[..., 0],
+        flat[..., 1],
+        cv2.INTER_LINEAR,
+        borderMode=cv2.BORDER_REPLICATE,
+    )
+    return sampled.ravel()[: xy.shape[0] * xy.shape[1]].reshape(xy.shape[:2]).astype(np.float64)
+
+
+@dataclass(frozen=True)
+class _LineProfile:
+    """One view's template response across a lone wire, measured on its own lone places
+    found: the median of their profiles, each divided by its value at the centre."""
+
+    steps: F64  # (K,) px across, PROFILE_STEP_PX apart, centred on 0
+    value: F64  # (K,) 1 at the centre
+    polarity: float  # +1: the wires respond positively here (brighter than the ground)
+    separation: float  # px: its core's full width (between the zero crossings); two lines
+    # nearer than that overlap in their cores and are not told apart
+
+    def at(self, x: F64) -> F64:
+        return np.interp(x, self.steps, self.value, left=0.0, right=0.0)
+
+
+# Sub-pixel step of a line profile and of the two-line fit's positions (px); the grid's
+# rounding error (≤ half a step) is small beside a wire centre's image noise (0.2-0.4 px).
+PROFILE_STEP_PX = 0.1
+# Lone places a view must have found to measure its line profile (the profile is their
+# median; fewer, and a place beside another wire is searched the narrowed way).
+MIN_PROFILE_PLACES = 20
+
+
+def _line_profile(
+    response: F32, uv: F64, normal: F64, offset: F64, half_px: float
+) -> _LineProfile | None:
+    """The view's line profile out to ``half_px`` from its lone places found (``offset``
+    finite), or None when fewer than ``MIN_PROFILE_PLACES`` are."""
+    found = np.isfinite(offset)
+    if found.sum() < MIN_PROFILE_PLACES:
+        return None
+    n = int(round(half_px / PROFILE_STEP_PX))
+    steps = np.arange(-n, n + 1) * PROFILE_STEP_PX
+    centre = uv[found] + offset[found, None] * normal[found]
+    s = _samples_across(response, centre, normal[found], steps)
+    c = s[:, n]
+    s, c = s[c != 0], c[c != 0]
+    if len(c) < MIN_PROFILE_PLACES:
+        return None
+    value = np.median(s / c[:, None], axis=0)
+    value /= value[n]
+    # The core: from the centre out to where the profile first crosses zero (two lines
+    # farther apart than its width have cores that do not overlap).
+    below = value <= 0.0
+    right = int(np.argmax(below[n:])) if below[n:].any() else n
+    left = int(np.argmax(below[n::-1])) if below[n::-1].any() else n
+    return _LineProfile(
+        steps, value, float(np.sign(np.median(c))), (left + right) * PROFILE_STEP_PX
+    )
+
+
+def _joint_offsets(
+    response: F32, uv: F64, normal: F64, near: F64, reach_px: float, profile: _LineProfile
+) -> F64:
+    """(N,) each wire centre's offset (px, along ``normal``) where another wire's image lies
+    ``near`` px beside it, from both lines fitted at once: the sampled response is taken as
+    the sum of two of the view's line profiles, at this wire's offset (within ``reach_px``)
+    and at the other's (within a pixel of its projection), with least-squares amplitudes of
+    the wires' polarity; the pair of positions that explains most of the response wins.
+    NaN where the best lies at the end of the reach (no peak there) or none fits."""
+    out = np.full(len(uv), np.nan)
+    if len(uv) == 0:
+        return out
+    half = float(profile.steps[-1])
+    k_max = int(np.ceil(max(reach_px, float(np.max(np.abs(near))) + 1.0) + half))
+    k = np.arange(-k_max, k_max + 1, dtype=np.float64)
+    p1 = np.arange(-round(reach_px / PROFILE_STEP_PX), round(reach_px / PROFILE_STEP_PX) + 1)
+    p1 = p1 * PROFILE_STEP_PX
+    dp = np.arange(-round(1 / PROFILE_STEP_PX), round(1 / PROFILE_STEP_PX) + 1) * PROFILE_STEP_PX
+    h1 = profile.at(k[None, :] - p1[:, None])  # (P, K)
+    s11 = (h1**2).sum(1)
+    chunk = 256
+    for lo in range(0, len(uv), chunk):
+        sl = slice(lo, lo + chunk)
+        r = _samples_across(response, uv[sl], normal[sl], k) * profile.polarity  # (n, K)
+        p2 = near[sl, None] + dp[None, :]  # (n, D)
+        h2 = profile.at(k[None, None, :] - p2[:, :, None])  # (n, D, K)
+        s22 = (h2**2).sum(2)
+        s12 = np.einsum("pk,ndk->npd", h1, h2)
+        b1 = r @ h1.T  # (n, P)
+        b2 = np.einsum("ndk,nk->nd", h2, r)
+        det = s11[None, :, None] * s22[:, None, :] - s12**2
+        with np.errstate(divide="ignore", invalid="ignore"):
+            a1 = (s22[:, None, :] * b1[:, :, None] - s12 * b2[:, None, :]) / det
+            a2 = (s11[None, :, None] * b2[:, None, :] - s12 * b1[:, :, None]) / det
+            explained = a1 * b1[:, :, None] + a2 * b2[:, None, :]
+        apart = np.abs(p1[None, :, None] - p2[:, None, :]) >= profile.separation
+        ok = apart & (a1 > 0) & (a2 > 0) & (det > 1e-9 * s11[None, :, None] * s22[:, None, :])
+        explained = np.where(ok, explained, -np.inf)
+        flat = explained.reshape(len(r), -1)
+        best = np.argmax(flat, axis=1)
+        i1 = best // len(dp)
+        fits = np.isfinite(flat[np.arange(len(r)), best])
+        inner = (i1 > 0) & (i1 < len(p1) - 1)
+        out[sl] = np.where(fits & inner, p1[i1], np.nan)
+    return out
 
 
 def _observe(
@@ -244,7 +388,7 @@ def _observe(
     if len(idx) == 0:
         return None
     normal, rows = image_normals(view, places.pts[idx], places.tangent[idx])
-    reach = _reach_beside_others(
+    reach, near = _beside_others(
         uv,
         normal,
         places.wire[idx],
@@ -252,8 +396,11 @@ def _observe(
         detect.side_offset_px,
         None if places.group is None else places.group[places.wire[idx]],
     )
-    keep = (reach > 0) & (places.wire[idx] < places.n_traced)
-    idx, uv, normal, rows, reach = idx[keep], uv[keep], normal[keep], rows[keep], reach[keep]
+    # Beside another wire's image, the two lines fitted at once may tell them apart where
+    # even the narrowed search cannot.
+    keep = ((reach > 0) | np.isfinite(near)) & (places.wire[idx] < places.n_traced)
+    idx, uv, normal, rows = idx[keep], uv[keep], normal[keep], rows[keep]
+    reach, near = reach[keep], near[keep]
     if len(idx) == 0:
         return None
     px = np.floor(uv).astype(np.int64)
@@ -265,10 +412,31 @@ def _observe(
     direction = image_wire_direction_deg(view, places.pts[idx[len(idx) // 2]], azimuth_deg)
     wm = wire_mask(view, image, direction, (x0, y0, x1, y1))
     del image
+    local = uv - [x0, y0]
+    lone = reach == reach_px
     offset = np.full(len(idx), np.nan)
-    for r in np.unique(reach):
-        at = reach == r
-        offset[at] = _wire_offsets(wm.response, uv[at] - [x0, y0], normal[at], float(r))
+    if lone.any():
+        offset[lone] = _wire_offsets(wm.response, local[lone], normal[lone], reach_px)
+    # Beside another wire: both lines fitted at once with this view's own line profile,
+    # where the two are farther apart than its core is wide; else the narrowed search.
+    joint = np.zeros(len(idx), bool)
+    if (~lone).any():
+        profile = _line_profile(
+            wm.response,
+            local[lone],
+            normal[lone],
+            offset[lone],
+            np.ceil(reach_px) + detect.side_offset_px + 1,
+        )
+        if profile is not None:
+            joint = ~lone & (np.abs(near) >= profile.separation)
+            offset[joint] = _joint_offsets(
+                wm.response, local[joint], normal[joint], near[joint], reach_px, profile
+            )
+    narrowed = ~lone & ~joint & (reach > 0)
+    for r in np.unique(reach[narrowed]):
+        at = narrowed & (reach == r)
+        offset[at] = _wire_offsets(wm.response, local[at], normal[at], float(r))
     found = np.isfinite(offset)
     centre = uv[found] + offset[found, None] * normal[found] - [x0, y0]
     cx = np.clip(np.floor(centre[:, 0]).astype(np.int64), 0, wm.mask.shape[1] - 1)
@@ -288,7 +456,7 @@ def _observe(
         rows,
         np.where(strict, offset, np.nan),
         np.where(loose, offset, np.nan),
-        reach == reach_px,
+        lone | joint,
     )
 
 

@@ -20,7 +20,9 @@ from colmap_powerline.trace import (
     TraceOptions,
     _checked_by_curve,
     _continuation_error,
+    _joint_offsets,
     _leaves_curve,
+    _line_profile,
     _places,
     _reach_beside_others,
     _Solution,
@@ -540,3 +542,31 @@ def test_a_conductor_the_line_spacing_predicts_is_found_beside_the_confirmed_one
     assert np.median(d) < 0.04 and np.mean(d < 0.1) > 0.95
     assert new.s_range[1] - new.s_range[0] > 0.7 * missing.length_m
     assert out_sup[3].traced_share is not None and out_sup[3].traced_share >= 0.5
+
+
+@pytest.mark.parametrize("separation", [1.4, 2.2, 2.6, 3.2, 4.5])
+def test_two_lines_side_by_side_are_told_apart_by_fitting_both(separation):
+    """Stacked wires that a view sees 2-3 px apart (a top conductor above its neighbour in a
+    flight along the line): both lines fitted at once with the view's own line profile,
+    measured on a lone line of the same image, find this one to 0.2 px from 2.2 px apart
+    (the narrowed search gives up below 3 px), the other twice as bright; nearer than the
+    profile's core is wide (1.6 px here) the caller does not ask."""
+    rows = np.arange(120.0)[:, None]
+
+    def line(y, amp):
+        return amp * np.exp(-0.5 * ((rows - y) / 0.6) ** 2)
+
+    gray = 60 + line(20.0, 25) + line(70.0, 20) + line(70.0 + separation, 40)
+    response = line_response(np.tile(gray, (1, 100)).astype(np.float32), 0.0)
+    x = np.arange(20.0, 80.0, 2.0)
+    normal = np.tile([0.0, 1.0], (len(x), 1))
+    lone = np.c_[x, np.full(len(x), 20.5)]  # pixel-centre coordinates of the lone line
+    profile = _line_profile(response, lone, normal, _wire_offsets(response, lone, normal, 3.0), 5)
+    assert profile is not None
+    assert profile.polarity == 1.0
+    assert 1.0 < profile.separation < 2.2
+    mine = np.c_[x, np.full(len(x), 70.5)] + [0.0, 0.3]  # projections 0.3 px off the line
+    got = _joint_offsets(response, mine, normal, np.full(len(x), separation - 0.3), 3.0, profile)
+    if separation < profile.separation:
+        return  # not asked: the caller searches the narrowed way (here: not at all)
+    assert np.all(np.abs(got + 0.3) < 0.2)
