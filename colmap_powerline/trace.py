@@ -13,9 +13,11 @@ wire centre within ``reach_px`` of the projection, across the wire's direction i
 (within the response's reach) both lines are fitted at once: the response across them is
 taken as the sum of two copies of the view's own line profile, measured on its lone places
 (:func:`_line_profile`, :func:`_joint_offsets`), where the two lie farther apart than that
-profile's core is wide; nearer, or where the view has too few lone places to measure its
-profile, the search stops a pixel clear of the other line's response, and a view where it
-cannot is not asked there (:func:`_reach_beside_others`). A wire centre found at image
+profile's core is wide and this line stands above the detector's contrast threshold on its
+own; nearer, or where the view has too few lone places to measure its profile, the search
+stops a pixel clear of the other line's response, and a view where it cannot is not asked
+there (:func:`_reach_beside_others`). Either way such a view adds its measurement but does
+not count among the views that would fix the place. A wire centre found at image
 offset ``o`` says that the wire point lies on the plane through the camera and that image
 line: one linear equation in the two unknown offsets of the point across the wire's tangent.
 Two views offset across the wires fix both; more views are redundant, and the one that
@@ -321,16 +323,21 @@ def _line_profile(
 
 def _joint_offsets(
     response: F32, uv: F64, normal: F64, near: F64, reach_px: float, profile: _LineProfile
-) -> F64:
+) -> tuple[F64, F64]:
     """(N,) each wire centre's offset (px, along ``normal``) where another wire's image lies
     ``near`` px beside it, from both lines fitted at once: the sampled response is taken as
     the sum of two of the view's line profiles, at this wire's offset (within ``reach_px``)
     and at the other's (within a pixel of its projection), with least-squares amplitudes of
     the wires' polarity; the pair of positions that explains most of the response wins.
-    NaN where the best lies at the end of the reach (no peak there) or none fits."""
+    NaN where the best lies at the end of the reach (no peak there) or none fits. Also
+    (N,) this line's amplitude: the root of what it adds to the response explained by the
+    best single line anywhere in the window, per unit of its profile's energy (its response
+    at its centre where the two lie apart; 0: none); a line the fit puts beside the other
+    where there is none adds next to nothing."""
     out = np.full(len(uv), np.nan)
+    amplitude = np.zeros(len(uv))
     if len(uv) == 0:
-        return out
+        return out, amplitude
     half = float(profile.steps[-1])
     k_max = int(np.ceil(max(reach_px, float(np.max(np.abs(near))) + 1.0) + half))
     k = np.arange(-k_max, k_max + 1, dtype=np.float64)
@@ -339,6 +346,9 @@ def _joint_offsets(
     dp = np.arange(-round(1 / PROFILE_STEP_PX), round(1 / PROFILE_STEP_PX) + 1) * PROFILE_STEP_PX
     h1 = profile.at(k[None, :] - p1[:, None])  # (P, K)
     s11 = (h1**2).sum(1)
+    pa = np.arange(-round(k_max / PROFILE_STEP_PX), round(k_max / PROFILE_STEP_PX) + 1)
+    ha = profile.at(k[None, :] - pa[:, None] * PROFILE_STEP_PX)  # (A, K): one line anywhere
+    sa = (ha**2).sum(1)
     chunk = 256
     for lo in range(0, len(uv), chunk):
         sl = slice(lo, lo + chunk)
@@ -363,7 +373,13 @@ def _joint_offsets(
         fits = np.isfinite(flat[np.arange(len(r)), best])
         inner = (i1 > 0) & (i1 < len(p1) - 1)
         out[sl] = np.where(fits & inner, p1[i1], np.nan)
-    return out
+        # What this line adds to the best single line anywhere in the window (a single
+        # line off the profile's sub-pixel shape is otherwise split into two).
+        b = r @ ha.T  # (n, A)
+        one = np.max(np.where(b > 0, b**2 / sa[None, :], 0.0), axis=1)
+        gain = np.clip(flat[np.arange(len(r)), best] - one, 0.0, None)
+        amplitude[sl] = np.where(fits & inner, np.sqrt(gain / s11[i1]), 0.0)
+    return out, amplitude
 
 
 def _observe(
@@ -420,6 +436,7 @@ def _observe(
     # Beside another wire: both lines fitted at once with this view's own line profile,
     # where the two are farther apart than its core is wide; else the narrowed search.
     joint = np.zeros(len(idx), bool)
+    amplitude = np.zeros(len(idx))
     if (~lone).any():
         profile = _line_profile(
             wm.response,
@@ -430,7 +447,7 @@ def _observe(
         )
         if profile is not None:
             joint = ~lone & (np.abs(near) >= profile.separation)
-            offset[joint] = _joint_offsets(
+            offset[joint], amplitude[joint] = _joint_offsets(
                 wm.response, local[joint], normal[joint], near[joint], reach_px, profile
             )
     narrowed = ~lone & ~joint & (reach > 0)
@@ -447,16 +464,24 @@ def _observe(
     # Loose: a peak above the detector's contrast threshold, without its length filter (on a
     # wire the views already find, the curve is the evidence the length gave).
     magnitude = np.abs(wm.response)
-    strong = magnitude > contrast_threshold(magnitude, detect)
+    threshold = contrast_threshold(magnitude, detect)
+    strong = magnitude > threshold
     strong = cv2.dilate(strong.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
     loose = found.copy()
     loose[np.flatnonzero(found)[~strong[cy, cx]]] = False
+    if joint.any():
+        # Beside another wire, its pixels and response spill over a centre the fit put
+        # there: the line must stand above the threshold on its own (the other's removed).
+        weak = np.zeros(len(idx), bool)
+        weak[np.flatnonzero(found)] = amplitude[found] <= threshold[cy, cx]
+        strict &= ~(joint & weak)
+        loose &= ~(joint & weak)
     return (
         idx,
         rows,
         np.where(strict, offset, np.nan),
         np.where(loose, offset, np.nan),
-        lone | joint,
+        lone,
     )
 
 
@@ -542,8 +567,11 @@ class _Observations:
     rows: F64  # (n, 3) Jacobian row across the wire (px per model unit)
     strict: F64  # (n,) offset to the detector's wire centre (px; NaN: none)
     loose: F64  # (n,) offset to a peak that stands out (px; NaN: none)
-    clear: npt.NDArray[np.bool_]  # (n,) no other wire narrowed the search (the view counts
-    # among those that see the place; a narrowed one adds its measurement where it has one)
+    clear: npt.NDArray[np.bool_]  # (n,) no other wire's image within the search's reach
+    # (the view counts among those that see the place; one beside another wire's image,
+    # fitted with it or searched the narrowed way, adds its measurement where it has one:
+    # on the real road flight, counting the fitted ones let a curve 0.4 m above a
+    # conductor, in its vertical plane, pass as a wire)
 
 
 def _look(

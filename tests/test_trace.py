@@ -566,7 +566,19 @@ def test_two_lines_side_by_side_are_told_apart_by_fitting_both(separation):
     assert profile.polarity == 1.0
     assert 1.0 < profile.separation < 2.2
     mine = np.c_[x, np.full(len(x), 70.5)] + [0.0, 0.3]  # projections 0.3 px off the line
-    got = _joint_offsets(response, mine, normal, np.full(len(x), separation - 0.3), 3.0, profile)
+    got, amp = _joint_offsets(
+        response, mine, normal, np.full(len(x), separation - 0.3), 3.0, profile
+    )
     if separation < profile.separation:
         return  # not asked: the caller searches the narrowed way (here: not at all)
     assert np.all(np.abs(got + 0.3) < 0.2)
+    assert np.all(amp > 0.4 * response[20, 50])  # the lone line's peak; this one is 20/25
+    # Where there is no line beside the other, what the fit puts there adds a quarter of a
+    # true line's amplitude at most (a sharp line's response is not quite one shape at
+    # every sub-pixel phase); the view's contrast threshold decides.
+    gray = 60 + line(20.0, 25) + line(70.0 + separation, 40)
+    response = line_response(np.tile(gray, (1, 100)).astype(np.float32), 0.0)
+    _, ghost = _joint_offsets(
+        response, mine, normal, np.full(len(x), separation - 0.3), 3.0, profile
+    )
+    assert np.all(ghost < 0.3 * amp)
