@@ -16,7 +16,7 @@ taken as the sum of two copies of the view's own line profile, measured on its l
 profile's core is wide and this line stands above the detector's contrast threshold on its
 own; nearer, or where the view has too few lone places to measure its profile, the search
 stops a pixel clear of the other line's response, and a view where it cannot is not asked
-there (:func:`_reach_beside_others`). Either way such a view adds its measurement but does
+there (:func:`_beside_others`). Either way such a view adds its measurement but does
 not count among the views that would fix the place. A wire centre found at image
 offset ``o`` says that the wire point lies on the plane through the camera and that image
 line: one linear equation in the two unknown offsets of the point across the wire's tangent.
@@ -196,25 +196,6 @@ def image_normals(view: SceneImage, pts: F64, tangent: F64) -> tuple[F64, F64]:
     return normal, np.einsum("ni,nij->nj", normal, jac)
 
 
-def _reach_beside_others(
-    uv: F64,
-    normal: F64,
-    wire: I64,
-    reach_px: float,
-    side_offset_px: int,
-    group: I64 | None = None,
-) -> F64:
-    """(N,) how far across each projected place (px) its wire centre may be searched in this
-    view: ``reach_px`` where no other wire passes near; where one does, a whole number of
-    pixels that keeps the search's last sample a pixel clear of the other wire's response
-    (its template's side taps reach ``side_offset_px`` beyond its line); 0 where not even
-    one pixel is clear (the place is ambiguous in this view). The other wire's distance is
-    its offset across this one's image direction: stacked wires that one strip sees 3-4 px
-    apart are measured there, as the separate lines they are. ``group`` (per place): places
-    of two different looks (both ≥ 0) are not each other's neighbours."""
-    return _beside_others(uv, normal, wire, reach_px, side_offset_px, group)[0]
-
-
 def _beside_others(
     uv: F64,
     normal: F64,
@@ -223,8 +204,16 @@ def _beside_others(
     side_offset_px: int,
     group: I64 | None = None,
 ) -> tuple[F64, F64]:
-    """(:func:`_reach_beside_others`, and the signed offset (px, along each place's normal)
-    of the nearest other wire's image within reach of its response; NaN: none)."""
+    """(N,) how far across each projected place (px) its wire centre may be searched in this
+    view: ``reach_px`` where no other wire passes near; where one does, a whole number of
+    pixels that keeps the search's last sample a pixel clear of the other wire's response
+    (its template's side taps reach ``side_offset_px`` beyond its line); 0 where not even
+    one pixel is clear (the place is ambiguous in this view). The other wire's distance is
+    its offset across this one's image direction: stacked wires that one strip sees 3-4 px
+    apart are measured there, as the separate lines they are. ``group`` (per place): places
+    of two different looks (both ≥ 0) are not each other's neighbours.
+    Also (N,) the signed offset (px, along each place's normal) of the nearest other wire's
+    image within reach of its response (NaN: none)."""
     full = float(reach_px)
     reach = np.full(len(uv), full)
     near = np.full(len(uv), np.nan)
@@ -392,7 +381,7 @@ def _observe(
     detect: DetectOptions,
 ) -> tuple[I64, F64, F64, F64, npt.NDArray[np.bool_]] | None:
     """One view's observations of the places it sees (not where another wire passes too
-    near to tell, :func:`_reach_beside_others`): (place,
+    near to tell, :func:`_beside_others`): (place,
     Jacobian row across the wire in the image (px per model unit), offset to the wire
     centre (px; NaN where it found none), the same where a peak stands out (loose), and
     whether no other wire narrowed the search there), or None."""

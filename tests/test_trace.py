@@ -18,13 +18,13 @@ from colmap_powerline.synthetic import TrueWire, load_true_wires
 from colmap_powerline.trace import (
     MAX_BEND,
     TraceOptions,
+    _beside_others,
     _checked_by_curve,
     _continuation_error,
     _joint_offsets,
     _leaves_curve,
     _line_profile,
     _places,
-    _reach_beside_others,
     _Solution,
     primitive_reach,
     trace_wires,
@@ -449,16 +449,19 @@ def test_the_search_beside_another_wire_stops_a_pixel_clear_of_it(separation, re
     uv = np.r_[np.c_[x, np.full(len(x), 50.0)], np.c_[x + 0.3, np.full(len(x), 50.0 + separation)]]
     wire = np.r_[np.zeros(len(x), np.int64), np.ones(len(x), np.int64)]
     normal = np.tile([0.0, 1.0], (len(uv), 1))
-    got = _reach_beside_others(uv, normal, wire, 3.0, DetectOptions().side_offset_px)
+    side = DetectOptions().side_offset_px
+    got, near = _beside_others(uv, normal, wire, 3.0, side)
     assert np.all(got[10:-10] == reach)  # away from the lines' ends
-    alone = _reach_beside_others(uv[wire == 0], normal[wire == 0], wire[wire == 0], 3.0, 1)
+    alone = _beside_others(uv[wire == 0], normal[wire == 0], wire[wire == 0], 3.0, 1)[0]
     assert np.all(alone == 3.0)
+    # The other line's offset across this one (both signs), where it is within reach.
+    if separation < 5.0:
+        assert np.allclose(near[10:20], separation) and np.allclose(near[40:50], -separation)
     # Two hypotheses looked for from one read as if each were alone: different looks do not
     # narrow each other's search; a context wire (look -1) narrows every look's.
-    side = DetectOptions().side_offset_px
-    apart = _reach_beside_others(uv, normal, wire, 3.0, side, wire.copy())
+    apart = _beside_others(uv, normal, wire, 3.0, side, wire.copy())[0]
     assert np.all(apart == 3.0)
-    ctx = _reach_beside_others(uv, normal, wire, 3.0, side, np.where(wire == 1, -1, 0))
+    ctx = _beside_others(uv, normal, wire, 3.0, side, np.where(wire == 1, -1, 0))[0]
     assert np.all(ctx[10:-10] == got[10:-10])
     if reach == 0.0 or separation >= 5.0:
         return
