@@ -73,6 +73,7 @@ from .verify import (
     _roughly_in_view,
     _wire_offsets,
     image_wire_direction_deg,
+    samples_across,
 )
 from .wires import FittedWire, WiresOptions, catenary_mid, refit
 
@@ -196,6 +197,12 @@ def image_normals(view: SceneImage, pts: F64, tangent: F64) -> tuple[F64, F64]:
     return normal, np.einsum("ni,nij->nj", normal, jac)
 
 
+def _response_reach(reach_px: float, side_offset_px: int) -> float:
+    """How far across (px) a search of ``reach_px`` and another line's template response
+    (side taps ``side_offset_px`` beyond its line) can meet: beyond it they never do."""
+    return float(np.ceil(reach_px) + side_offset_px + 1)
+
+
 def _beside_others(
     uv: F64,
     normal: F64,
@@ -217,7 +224,7 @@ def _beside_others(
     full = float(reach_px)
     reach = np.full(len(uv), full)
     near = np.full(len(uv), np.nan)
-    radius = np.ceil(reach_px) + side_offset_px + 1  # beyond it the full reach is clear
+    radius = _response_reach(reach_px, side_offset_px)  # beyond it the full reach is clear
     pairs = cKDTree(uv).query_pairs(radius, output_type="ndarray")
     if len(pairs) == 0:
         return reach, near
@@ -235,28 +242,7 @@ def _beside_others(
         # The signed offset of the nearest (ties: either).
         at = across <= nearest[a]
         near[a[at]] = signed[at]
-    near[np.abs(near) > radius] = np.nan
     return reach, near
-
-
-def _samples_across(response: F32, uv: F64, normal: F64, steps: F64) -> F64:
-    """(N, len(steps)) the signed response sampled (bilinear) at ``uv + steps * normal``
-    (pixel-centre coordinates, COLMAP's convention)."""
-    if len(uv) == 0:
-        return np.zeros((0, len(steps)))
-    xy = uv[:, None, :] - 0.5 + steps[None, :, None] * normal[:, None, :]
-    flat = xy.reshape(-1, 2).astype(np.float32)
-    width = 4096  # cv2.remap maps must stay below 32767 px a side
-    pad = (-len(flat)) % width
-    flat = np.concatenate([flat, np.zeros((pad, 2), np.float32)]).reshape(-1, width, 2)
-    sampled = cv2.remap(
-        response.astype(np.float32),
-        flat[..., 0],
-        flat[..., 1],
-        cv2.INTER_LINEAR,
-        borderMode=cv2.BORDER_REPLICATE,
-    )
-    return sampled.ravel()[: xy.shape[0] * xy.shape[1]].reshape(xy.shape[:2]).astype(np.float64)
 
 
 @dataclass(frozen=True)
@@ -293,7 +279,7 @@ def _line_profile(
     n = int(round(half_px / PROFILE_STEP_PX))
     steps = np.arange(-n, n + 1) * PROFILE_STEP_PX
     centre = uv[found] + offset[found, None] * normal[found]
-    s = _samples_across(response, centre, normal[found], steps)
+    s = samples_across(response, centre, normal[found], steps)
     c = s[:, n]
     s, c = s[c != 0], c[c != 0]
     if len(c) < MIN_PROFILE_PLACES:
@@ -341,7 +327,7 @@ def _joint_offsets(
     chunk = 256
     for lo in range(0, len(uv), chunk):
         sl = slice(lo, lo + chunk)
-        r = _samples_across(response, uv[sl], normal[sl], k) * profile.polarity  # (n, K)
+        r = samples_across(response, uv[sl], normal[sl], k) * profile.polarity  # (n, K)
         p2 = near[sl, None] + dp[None, :]  # (n, D)
         h2 = profile.at(k[None, None, :] - p2[:, :, None])  # (n, D, K)
         s22 = (h2**2).sum(2)
@@ -420,8 +406,7 @@ def _observe(
     local = uv - [x0, y0]
     lone = reach == reach_px
     offset = np.full(len(idx), np.nan)
-    if lone.any():
-        offset[lone] = _wire_offsets(wm.response, local[lone], normal[lone], reach_px)
+    offset[lone] = _wire_offsets(wm.response, local[lone], normal[lone], reach_px)
     # Beside another wire: both lines fitted at once with this view's own line profile,
     # where the two are farther apart than its core is wide; else the narrowed search.
     joint = np.zeros(len(idx), bool)
@@ -432,7 +417,7 @@ def _observe(
             local[lone],
             normal[lone],
             offset[lone],
-            np.ceil(reach_px) + detect.side_offset_px + 1,
+            _response_reach(reach_px, detect.side_offset_px),
         )
         if profile is not None:
             joint = ~lone & (np.abs(near) >= profile.separation)

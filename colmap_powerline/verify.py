@@ -265,6 +265,29 @@ def image_wire_direction_deg(view: SceneImage, pt_in_world: F64, azimuth_deg: fl
     return float(np.rad2deg(np.arctan2(du[1], du[0])) % 180.0)
 
 
+def samples_across(image: np.ndarray, uv: F64, normal: F64, steps: F64) -> F64:
+    """(N, len(steps)) ``image`` sampled (bilinear, edges replicated) at ``uv + steps *
+    normal`` (pixel-centre coordinates, COLMAP's convention; ``normal``: (2,) or one per
+    point (N, 2))."""
+    if len(uv) == 0:
+        return np.zeros((0, len(steps)))
+    normal = np.asarray(normal, np.float64)
+    across = normal[None, None, :] if normal.ndim == 1 else normal[:, None, :]  # one or (N, 2)
+    xy = uv[:, None, :] - 0.5 + steps[None, :, None] * across  # array index coordinates
+    flat = xy.reshape(-1, 2).astype(np.float32)
+    width = 4096  # cv2.remap maps must stay below 32767 px a side
+    pad = (-len(flat)) % width
+    flat = np.concatenate([flat, np.zeros((pad, 2), np.float32)]).reshape(-1, width, 2)
+    sampled = cv2.remap(
+        image.astype(np.float32),
+        flat[..., 0],
+        flat[..., 1],
+        cv2.INTER_LINEAR,
+        borderMode=cv2.BORDER_REPLICATE,
+    )
+    return sampled.ravel()[: xy.shape[0] * xy.shape[1]].reshape(xy.shape[:2]).astype(np.float64)
+
+
 def _wire_offsets(response: np.ndarray, uv: F64, normal: F64, reach: float) -> F64:
     """Signed distance (px, along ``normal``: (2,) or one per point (N, 2)) from each point
     to the wire centre near it.
@@ -274,21 +297,7 @@ def _wire_offsets(response: np.ndarray, uv: F64, normal: F64, reach: float) -> F
     sample is at the end of the reach (no peak there).
     """
     steps = np.arange(-np.ceil(reach), np.ceil(reach) + 1)
-    normal = np.asarray(normal, np.float64)
-    across = normal[None, None, :] if normal.ndim == 1 else normal[:, None, :]  # one or (N, 2)
-    xy = uv[:, None, :] - 0.5 + steps[None, :, None] * across  # array index coordinates
-    flat = xy.reshape(-1, 2).astype(np.float32)
-    width = 4096  # cv2.remap maps must stay below 32767 px a side
-    pad = (-len(flat)) % width
-    flat = np.concatenate([flat, np.zeros((pad, 2), np.float32)]).reshape(-1, width, 2)
-    sampled = cv2.remap(
-        np.abs(response).astype(np.float32),
-        flat[..., 0],
-        flat[..., 1],
-        cv2.INTER_LINEAR,
-        borderMode=cv2.BORDER_REPLICATE,
-    )
-    samples = sampled.ravel()[: xy.shape[0] * xy.shape[1]].reshape(xy.shape[:2]).astype(np.float64)
+    samples = samples_across(np.abs(response), uv, normal, steps)
     k = np.argmax(samples, axis=1)
     inner = (k > 0) & (k < len(steps) - 1)
     kc = np.clip(k, 1, len(steps) - 2)
