@@ -16,8 +16,10 @@ taken as the sum of two copies of the view's own line profile, measured on its l
 profile's core is wide and this line stands above the detector's contrast threshold on its
 own; nearer, or where the view has too few lone places to measure its profile, the search
 stops a pixel clear of the other line's response, and a view where it cannot is not asked
-there (:func:`_beside_others`). Either way such a view adds its measurement but does
-not count among the views that would fix the place. A wire centre found at image
+there (:func:`_beside_others`). A view whose two-line fit puts a centre there, strong on
+its own, counts among the views that would fix the place; one whose fit does not, or whose
+search was narrowed, adds its measurement (where it has one) without counting, since beside
+another line not finding this one is no evidence that it is absent. A wire centre found at image
 offset ``o`` says that the wire point lies on the plane through the camera and that image
 line: one linear equation in the two unknown offsets of the point across the wire's tangent.
 Two views offset across the wires fix both; more views are redundant, and the one that
@@ -370,7 +372,8 @@ def _observe(
     near to tell, :func:`_beside_others`): (place,
     Jacobian row across the wire in the image (px per model unit), offset to the wire
     centre (px; NaN where it found none), the same where a peak stands out (loose), and
-    whether no other wire narrowed the search there), or None."""
+    whether the view counts among those that fix the place: ``_Observations.clear``), or
+    None."""
     cand = np.flatnonzero(_roughly_in_view(view, places.pts))
     if len(cand) == 0:
         return None
@@ -450,12 +453,15 @@ def _observe(
         weak[np.flatnonzero(found)] = amplitude[found] <= threshold[cy, cx]
         strict &= ~(joint & weak)
         loose &= ~(joint & weak)
+    # A view that resolves this line beside the other (the fit's centre, strong on its own)
+    # counts among those that fix the place; one that does not is no evidence either way.
+    clear = lone | (joint & loose)
     return (
         idx,
         rows,
         np.where(strict, offset, np.nan),
         np.where(loose, offset, np.nan),
-        lone,
+        clear,
     )
 
 
@@ -541,11 +547,12 @@ class _Observations:
     rows: F64  # (n, 3) Jacobian row across the wire (px per model unit)
     strict: F64  # (n,) offset to the detector's wire centre (px; NaN: none)
     loose: F64  # (n,) offset to a peak that stands out (px; NaN: none)
-    clear: npt.NDArray[np.bool_]  # (n,) no other wire's image within the search's reach
-    # (the view counts among those that see the place; one beside another wire's image,
-    # fitted with it or searched the narrowed way, adds its measurement where it has one:
-    # on the real road flight, counting the fitted ones let a curve 0.4 m above a
-    # conductor, in its vertical plane, pass as a wire)
+    clear: npt.NDArray[np.bool_]  # (n,) the view counts among those that see the place:
+    # no other wire's image within the search's reach, or the two-line fit found this line
+    # beside it standing above the contrast threshold on its own (counted without that test,
+    # the fitted views let a curve 0.4 m above the real road flight's field-side conductor,
+    # in its vertical plane, pass as a wire). A view searched the narrowed way, or fitted
+    # without finding, adds its measurement where it has one and does not count
 
 
 def _look(

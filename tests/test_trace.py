@@ -24,6 +24,8 @@ from colmap_powerline.trace import (
     _joint_offsets,
     _leaves_curve,
     _line_profile,
+    _observe,
+    _Places,
     _places,
     _Solution,
     primitive_reach,
@@ -585,3 +587,63 @@ def test_two_lines_side_by_side_are_told_apart_by_fitting_both(separation):
         response, mine, normal, np.full(len(x), separation - 0.3), 3.0, profile
     )
     assert np.all(ghost < 0.3 * amp)
+
+
+def _nadir_view(tmp_path, image: np.ndarray):
+    """A 400 × 300 px nadir view 50 m above the origin (f = 1000 px), ``image`` as its file."""
+    import pycolmap
+
+    from colmap_powerline.scene import SceneImage
+
+    path = tmp_path / "nadir.png"
+    cv2.imwrite(str(path), image)
+    h, w = image.shape[:2]
+    camera = pycolmap.Camera(
+        model="PINHOLE", width=w, height=h, params=[1000, 1000, w / 2, h / 2], camera_id=1
+    )
+    rot = np.diag([1.0, -1.0, -1.0])
+    return SceneImage(1, "nadir.png", path, camera, rot, -rot @ np.array([0.0, 0.0, 50.0]))
+
+
+@pytest.mark.parametrize("drawn", [True, False])
+def test_a_view_resolving_a_wire_beside_another_counts_among_those_fixing_it(tmp_path, drawn):
+    """Two wires along x 20 m up, 0.11 m apart (3.7 px in the view); the other runs beside
+    this one along its second half only, so the first half's lone places give the view its
+    line profile. Where the two-line fit finds this wire beside the other, strong on its own,
+    the view counts among those that fix the place; where the image has no such line, the
+    fit finds none there and the view does not count (beside another line, not finding is no
+    evidence that a wire is absent)."""
+
+    scale = 1000 / 30  # px per metre at 30 m depth
+    sep = 0.11
+    rng = np.random.default_rng(3)
+    img = 90 + rng.normal(0, 2.0, (300, 400))
+    rows = np.arange(300)[:, None] + 0.5
+    cols = np.arange(400)[None, :] + 0.5
+    y_this, y_other = 150.0, 150.0 - sep * scale  # world +y is image −v
+    this = 40 * np.exp(-0.5 * ((rows - y_this) / 0.7) ** 2)
+    img += np.where((cols <= 200) | drawn, this, 0)  # the lone half: always there
+    img += np.where(cols > 200, 60 * np.exp(-0.5 * ((rows - y_other) / 0.7) ** 2), 0)
+    view = _nadir_view(tmp_path, np.clip(img, 0, 255).astype(np.uint8))
+    x = np.arange(-5.4, 5.4, 0.05)
+    x_other = x[x > 0.3]
+    pts = np.r_[np.c_[x, 0 * x, 0 * x + 20], np.c_[x_other, 0 * x_other + sep, 0 * x_other + 20]]
+    n = len(pts)
+    tangent = np.tile([1.0, 0.0, 0.0], (n, 1))
+    across = np.tile([[0.0, -1.0, 0.0], [0.0, 0.0, 1.0]], (n, 1, 1))
+    wire = np.r_[np.zeros(len(x), np.int64), np.ones(len(x_other), np.int64)]
+    places = _Places(pts, wire, across, tangent, n_traced=1)
+    got = _observe(
+        view, places, crop_wire_mask(DetectOptions(), 25), 90.0, 3.0, 20, DetectOptions()
+    )
+    assert got is not None
+    idx, _, strict, loose, clear = got
+    on = pts[idx, 0]
+    lone_half, beside = (on < -0.5) & (on > -4.5), (on > 1.0) & (on < 4.5)
+    assert clear[lone_half].all() and np.isfinite(loose[lone_half]).all()
+    if drawn:
+        assert np.isfinite(loose[beside]).mean() > 0.9
+        assert np.abs(loose[beside][np.isfinite(loose[beside])]).max() < 0.5
+        assert clear[beside].mean() > 0.9
+    else:
+        assert not clear[beside].any()
