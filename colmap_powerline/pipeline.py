@@ -51,6 +51,7 @@ from .support import (
     support_members,
     wire_support,
 )
+from .swaps import swapped_pairings
 from .trace import MIN_REDUNDANCY, MIN_TRACED_SHARE, TraceOptions, trace_wires
 from .triangulate import Primitives, TriangulateOptions, triangulate_pair, wire_centres
 from .verify import VerifiedPoints, VerifyOptions, WireMaskFn, verify_primitives
@@ -622,6 +623,27 @@ def reconstruct(
             wires, supports, verified, scene, corridor, options, judge
         )
         decoded += dec
+        # Two confirmed pieces that tracing grew along the same wire are one (shared soil
+        # seed 13: two pieces of a conductor, 14 and 8 m apart, traced into two 93 m copies
+        # 1.6 cm apart).
+        wires, supports = _join_pieces(
+            wires, supports, verified.pts_in_world, corridor.azimuth_deg, options.wires
+        )
+        # Where two strips alone see the wires, two swapped pairings of a wire's image lines
+        # with those of a wire not found can pass every test above (shared soil seed 11).
+        swapped, dec = swapped_pairings(
+            scene,
+            wires,
+            supports,
+            corridor.azimuth_deg,
+            options.detect,
+            options.verify.tolerance_px,
+        )
+        decoded += dec
+        if swapped:
+            keep = [k for k in range(len(wires)) if k not in swapped]
+            wires = [dataclasses.replace(wires[k], wire_id=i) for i, k in enumerate(keep)]
+            supports = [dataclasses.replace(supports[k], wire_id=i) for i, k in enumerate(keep)]
         timings["trace"] = time.perf_counter() - t1
     labels = np.full(len(verified), -1, np.int64)
     for w in wires:

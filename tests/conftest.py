@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
+import pycolmap
 import pytest
 
 from colmap_powerline import load_scene
+from colmap_powerline.scene import SceneImage
 from colmap_powerline.synthetic import SyntheticSpanOptions, generate_span
 
 
@@ -66,3 +69,21 @@ def medium_dense(medium_span, tmp_path_factory):
     z = terrain.height(xy) + np.random.default_rng(1).normal(0, 0.02, len(xy))
     rgb = np.full((len(xy), 3), 90, np.uint8)
     return write_fused_ply(tmp_path_factory.mktemp("dense") / "fused.ply", np.c_[xy, z], rgb)
+
+
+@pytest.fixture
+def nadir_view(tmp_path):
+    """A 400 × 300 px nadir view 50 m above the origin (f = 1000 px; world x is image u, world
+    y image −v) of a given image, written to a file."""
+
+    def make(image):
+        path = tmp_path / "nadir.png"
+        cv2.imwrite(str(path), image)
+        h, w = image.shape[:2]
+        camera = pycolmap.Camera(
+            model="PINHOLE", width=w, height=h, params=[1000, 1000, w / 2, h / 2], camera_id=1
+        )
+        rot = np.diag([1.0, -1.0, -1.0])
+        return SceneImage(1, "nadir.png", path, camera, rot, -rot @ np.array([0.0, 0.0, 50.0]))
+
+    return make

@@ -589,24 +589,8 @@ def test_two_lines_side_by_side_are_told_apart_by_fitting_both(separation):
     assert np.all(ghost < 0.3 * amp)
 
 
-def _nadir_view(tmp_path, image: np.ndarray):
-    """A 400 × 300 px nadir view 50 m above the origin (f = 1000 px), ``image`` as its file."""
-    import pycolmap
-
-    from colmap_powerline.scene import SceneImage
-
-    path = tmp_path / "nadir.png"
-    cv2.imwrite(str(path), image)
-    h, w = image.shape[:2]
-    camera = pycolmap.Camera(
-        model="PINHOLE", width=w, height=h, params=[1000, 1000, w / 2, h / 2], camera_id=1
-    )
-    rot = np.diag([1.0, -1.0, -1.0])
-    return SceneImage(1, "nadir.png", path, camera, rot, -rot @ np.array([0.0, 0.0, 50.0]))
-
-
 @pytest.mark.parametrize("drawn", [True, False])
-def test_a_view_resolving_a_wire_beside_another_counts_among_those_fixing_it(tmp_path, drawn):
+def test_a_view_resolving_a_wire_beside_another_counts_among_those_fixing_it(nadir_view, drawn):
     """Two wires along x 20 m up, 0.11 m apart (3.7 px in the view); the other runs beside
     this one along its second half only, so the first half's lone places give the view its
     line profile. Where the two-line fit finds this wire beside the other, strong on its own,
@@ -624,7 +608,7 @@ def test_a_view_resolving_a_wire_beside_another_counts_among_those_fixing_it(tmp
     this = 40 * np.exp(-0.5 * ((rows - y_this) / 0.7) ** 2)
     img += np.where((cols <= 200) | drawn, this, 0)  # the lone half: always there
     img += np.where(cols > 200, 60 * np.exp(-0.5 * ((rows - y_other) / 0.7) ** 2), 0)
-    view = _nadir_view(tmp_path, np.clip(img, 0, 255).astype(np.uint8))
+    view = nadir_view(np.clip(img, 0, 255).astype(np.uint8))
     x = np.arange(-5.4, 5.4, 0.05)
     x_other = x[x > 0.3]
     pts = np.r_[np.c_[x, 0 * x, 0 * x + 20], np.c_[x_other, 0 * x_other + sep, 0 * x_other + 20]]
