@@ -644,6 +644,7 @@ def reconstruct(
             keep = [k for k in range(len(wires)) if k not in swapped]
             wires = [dataclasses.replace(wires[k], wire_id=i) for i, k in enumerate(keep)]
             supports = [dataclasses.replace(supports[k], wire_id=i) for i, k in enumerate(keep)]
+        wires, supports = _without_unconfirmed(wires, supports)
         timings["trace"] = time.perf_counter() - t1
     labels = np.full(len(verified), -1, np.int64)
     for w in wires:
@@ -1076,6 +1077,35 @@ def _offset_of(wire: FittedWire, other: FittedWire) -> tuple[float, float]:
     """The median offset (across, height) of ``wire`` from ``other``."""
     _, across, dz = other.plane_coords(wire.polyline(0.5))
     return float(np.median(across)), float(np.median(dz))
+
+
+def _without_unconfirmed(
+    wires: list[FittedWire], supports: list[WireSupport]
+) -> tuple[list[FittedWire], list[WireSupport]]:
+    """The wires without those on weak geometry (no view can tell them from a false pairing)
+    that no strip confirms on its own either (``confirming_strips`` 0: every strip's views
+    see them only where other wires lie, or miss them), renumbered from 0. Nothing speaks for
+    such a wire but the pairing it came from: on the shared two-strip flights the two of
+    them in fifteen scenes were a 98 m pairing of one conductor's image in one strip with
+    another's in the other (mixed seed 3, written in place of the second) and a 14 m piece a
+    third of which lay 0.3-0.6 m off (soil seed 11); every other wire written had a strip
+    confirming it."""
+    keep = []
+    for k, (w, s) in enumerate(zip(wires, supports, strict=True)):
+        if s.geometry == "weak" and s.confirming_strips == 0:
+            logger.info(
+                "support: wire %d dropped (%.0f m): no view can tell it from a false pairing "
+                "and no strip confirms it on its own (each sees it only where other wires "
+                "lie, or misses it)",
+                w.wire_id,
+                w.s_range[1] - w.s_range[0],
+            )
+        else:
+            keep.append(k)
+    return (
+        [dataclasses.replace(wires[k], wire_id=i) for i, k in enumerate(keep)],
+        [dataclasses.replace(supports[k], wire_id=i) for i, k in enumerate(keep)],
+    )
 
 
 def _without_untraced(

@@ -167,6 +167,22 @@ def _support(
     )  # fmt: skip
 
 
+def test_a_wire_no_view_can_tell_and_no_strip_confirms_is_dropped(conductors):
+    """On weak geometry (no view can tell it from a false pairing), a wire that no strip
+    confirms on its own goes; one strip confirming it, or views that can tell, keep it."""
+    from colmap_powerline.pipeline import _without_unconfirmed
+
+    wires = [_curve(t, k, 0.2, 0.8, 0.0) for k, t in enumerate(conductors[:3])]
+    sup = [
+        dataclasses.replace(_support(0, 1.0, 0.9, crossing=0, confirming=0), geometry="weak"),
+        dataclasses.replace(_support(1, 1.0, 0.9, crossing=0, confirming=1), geometry="weak"),
+        _support(2, 1.0, 0.9, confirming=0),
+    ]
+    kept, kept_sup = _without_unconfirmed(wires, sup)
+    assert [w.z0 for w in kept] == [wires[1].z0, wires[2].z0]
+    assert [w.wire_id for w in kept] == [s.wire_id for s in kept_sup] == [0, 1]
+
+
 def test_wires_the_views_would_fix_but_do_not_find_are_dropped(conductors):
     from colmap_powerline.pipeline import MIN_TRACED_SHARE, _without_untraced
 
