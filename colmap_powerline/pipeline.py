@@ -645,8 +645,7 @@ def reconstruct(
         decoded += dec
         if swapped:
             keep = [k for k in range(len(wires)) if k not in swapped]
-            wires = [dataclasses.replace(wires[k], wire_id=i) for i, k in enumerate(keep)]
-            supports = [dataclasses.replace(supports[k], wire_id=i) for i, k in enumerate(keep)]
+            wires, supports = _kept(wires, supports, keep)
         wires, supports = _without_unconfirmed(wires, supports)
         timings["trace"] = time.perf_counter() - t1
     labels = np.full(len(verified), -1, np.int64)
@@ -1082,6 +1081,16 @@ def _offset_of(wire: FittedWire, other: FittedWire) -> tuple[float, float]:
     return float(np.median(across)), float(np.median(dz))
 
 
+def _kept(
+    wires: list[FittedWire], supports: list[WireSupport], keep: Sequence[int]
+) -> tuple[list[FittedWire], list[WireSupport]]:
+    """The wires (and their supports) at indices ``keep``, renumbered from 0."""
+    return (
+        [dataclasses.replace(wires[k], wire_id=i) for i, k in enumerate(keep)],
+        [dataclasses.replace(supports[k], wire_id=i) for i, k in enumerate(keep)],
+    )
+
+
 def _without_unconfirmed(
     wires: list[FittedWire], supports: list[WireSupport]
 ) -> tuple[list[FittedWire], list[WireSupport]]:
@@ -1108,10 +1117,7 @@ def _without_unconfirmed(
             )
         else:
             keep.append(k)
-    return (
-        [dataclasses.replace(wires[k], wire_id=i) for i, k in enumerate(keep)],
-        [dataclasses.replace(supports[k], wire_id=i) for i, k in enumerate(keep)],
-    )
+    return _kept(wires, supports, keep)
 
 
 def _without_untraced(
@@ -1162,10 +1168,7 @@ def _without_untraced(
             s.height_above_ground,
             why,
         )
-    return (
-        [dataclasses.replace(wires[k], wire_id=i) for i, k in enumerate(kept)],
-        [dataclasses.replace(supports[k], wire_id=i) for i, k in enumerate(kept)],
-    )
+    return _kept(wires, supports, kept)
 
 
 def _consensus(

@@ -64,18 +64,32 @@ def _points(wire: FittedWire, n: int = SAMPLES) -> tuple[F64, F64]:
     return pts, tangent
 
 
-def _on_image_of(scene: Scene, g: FittedWire, t: FittedWire, tolerance_px: float) -> set[int]:
+class _Projected:
+    """Each wire's samples (``SAMPLES``, or five times as many: ``dense``) projected into
+    every view, once: the tests below look at the same wires in the same views many times."""
+
+    def __init__(self, scene: Scene, wires: list[FittedWire]) -> None:
+        self.scene, self.wires = scene, wires
+        self._done: dict[tuple[int, bool], list[tuple[F64, npt.NDArray[np.bool_]]]] = {}
+
+    def __call__(self, k: int, dense: bool = False) -> list[tuple[F64, npt.NDArray[np.bool_]]]:
+        """Per view: (uv, inside) of wire k's samples."""
+        if (k, dense) not in self._done:
+            pts = _points(self.wires[k], 5 * SAMPLES if dense else SAMPLES)[0]
+            self._done[(k, dense)] = [
+                (uv, inside) for uv, _, inside in (v.project(pts) for v in self.scene.images)
+            ]
+        return self._done[(k, dense)]
+
+
+def _on_image_of(projected: _Projected, g: int, t: int, tolerance_px: float) -> set[int]:
     """The views in which wire g lies on wire t's image (within ``tolerance_px`` along at
     least ``MIN_SHARE_ON`` of what the view sees of g)."""
     out = set()
-    pg = _points(g)[0]
-    pt = _points(t, 5 * SAMPLES)[0]
-    for k, view in enumerate(scene.images):
-        ug, _, ig = view.project(pg)
-        if ig.sum() < 0.3 * len(pg):
-            continue
-        ut, _, it = view.project(pt)
-        if it.sum() < 2:
+    for k, ((ug, ig), (ut, it)) in enumerate(
+        zip(projected(g), projected(t, dense=True), strict=True)
+    ):
+        if ig.sum() < 0.3 * len(ig) or it.sum() < 2:
             continue
         d, _ = cKDTree(ut[it]).query(ug[ig], distance_upper_bound=tolerance_px)
         if np.isfinite(d).mean() >= MIN_SHARE_ON:
@@ -101,9 +115,8 @@ def _peak(steps: F64, profile: F64) -> float:
 
 
 def _disagreement(
-    scene: Scene,
-    wire: FittedWire,
-    others: list[FittedWire],
+    projected: _Projected,
+    k_wire: int,
     responses: dict[int, npt.NDArray[np.float32]],  # the views' signed line responses
     azimuth_deg: float,
     detect: DetectOptions,
@@ -114,14 +127,14 @@ def _disagreement(
     and the peak of their signed line response averaged across it over each ``STRETCH_PX``
     of its image. The lines of the ``others`` are left out of the search (their response is
     no evidence about this wire's), except where one lies on this wire's own image."""
-    pts, tangent = _points(wire)
+    scene = projected.scene
+    pts, tangent = _points(projected.wires[k_wire])
+    others = [j for j in range(len(projected.wires)) if j != k_wire]
     steps = np.arange(-reach_px, reach_px + 1e-9, 0.25)
     block = detect.side_offset_px + 2.0  # how far another line's response (its side taps, its
     # blur) reaches
-    other_pts = [_points(o, 5 * SAMPLES)[0] for o in others]
     worst = 0.0
-    for k, view in enumerate(scene.images):
-        uv, _, inside = view.project(pts)
+    for k, (view, (uv, inside)) in enumerate(zip(scene.images, projected(k_wire), strict=True)):
         if inside.sum() < 0.3 * len(pts):
             continue
         if k not in responses:
@@ -134,8 +147,8 @@ def _disagreement(
         normal, _ = image_normals(view, pts[inside], tan)
         profile = samples_across(responses[k], uv, normal, steps)
         # Other wires' image lines within reach, at this place: their offsets across.
-        seen = [view.project(o) for o in other_pts]
-        near = np.concatenate([o[0][o[2]] for o in seen] + [np.zeros((0, 2))])
+        views_of_others = [projected(j, dense=True)[k] for j in others]
+        near = np.concatenate([o_uv[o_in] for o_uv, o_in in views_of_others] + [np.zeros((0, 2))])
         if len(near):
             tree = cKDTree(near)
             for i, nb in enumerate(tree.query_ball_point(uv, reach_px + 1.5)):
@@ -180,19 +193,16 @@ def swapped_pairings(
     weak = [k for k, s in enumerate(supports) if s.geometry == "weak"]
     if len(weak) < 3:
         return set(), []
-    on = {
-        (g, t): _on_image_of(scene, wires[g], wires[t], tolerance_px)
-        for g, t in permutations(weak, 2)
-    }
+    projected = _Projected(scene, wires)
+    on = {(g, t): _on_image_of(projected, g, t, tolerance_px) for g, t in permutations(weak, 2)}
     responses: dict[int, npt.NDArray[np.float32]] = {}
     score: dict[int, float] = {}
     reach = 4 * tolerance_px  # the image lines a false pairing runs beside lie this near
 
     def disagreement(k: int) -> float:
         if k not in score:
-            others = [w for j, w in enumerate(wires) if j != k]
             score[k] = _disagreement(
-                scene, wires[k], others, responses, azimuth_deg, detect, reach, tolerance_px
+                projected, k, responses, azimuth_deg, detect, reach, tolerance_px
             )
         return score[k]
 

@@ -40,7 +40,9 @@ def test_a_curve_beside_its_line_is_measured_that_far_off(nadir_view, beside_px)
     view = nadir_view(np.clip(img, 0, 255).astype(np.uint8))
     scene = SimpleNamespace(images=[view])
     wire = _flat_wire(0, -beside_px / (1000 / 30))  # world −y is image +v
-    got = swaps._disagreement(scene, wire, [], {}, 90.0, DetectOptions(), 6.0, 1.5)
+    got = swaps._disagreement(
+        swaps._Projected(scene, [wire]), 0, {}, 90.0, DetectOptions(), 6.0, 1.5
+    )
     assert got == pytest.approx(beside_px, abs=0.25)
 
 
@@ -60,10 +62,8 @@ def test_of_a_swap_the_side_the_views_disagree_with_goes(monkeypatch, off, dropp
     goes; when they do not tell, all three go (on two strips a false wire costs more than a
     missing one)."""
     on = {(1, 0): {0, 1}, (2, 0): {2, 3}}
-    monkeypatch.setattr(
-        swaps, "_on_image_of", lambda sc, g, t, tol: on.get((g.wire_id, t.wire_id), set())
-    )
-    monkeypatch.setattr(swaps, "_disagreement", lambda sc, w, *a: off[w.wire_id])
+    monkeypatch.setattr(swaps, "_on_image_of", lambda pr, g, t, tol: on.get((g, t), set()))
+    monkeypatch.setattr(swaps, "_disagreement", lambda pr, k, *a: off[k])
     wires = [_flat_wire(k, 0.5 * k) for k in range(3)]
     weak = [SimpleNamespace(geometry="weak")] * 3
     scene = SimpleNamespace(images=[])
@@ -74,21 +74,15 @@ def test_without_a_swap_or_on_strong_geometry_nothing_goes(monkeypatch):
     """g on T's image from one strip, h nowhere on it (a wire hidden behind another from one
     strip): no swap. And a swap among wires the views that can tell confirmed is not looked
     at."""
-    monkeypatch.setattr(
-        swaps, "_disagreement", lambda sc, w, *a: {0: 0.5, 1: 3.0, 2: 3.0}[w.wire_id]
-    )
+    monkeypatch.setattr(swaps, "_disagreement", lambda pr, k, *a: {0: 0.5, 1: 3.0, 2: 3.0}[k])
     wires = [_flat_wire(k, 0.5 * k) for k in range(3)]
     scene = SimpleNamespace(images=[])
     weak = [SimpleNamespace(geometry="weak")] * 3
     one = {(1, 0): {0, 1}}
-    monkeypatch.setattr(
-        swaps, "_on_image_of", lambda sc, g, t, tol: one.get((g.wire_id, t.wire_id), set())
-    )
+    monkeypatch.setattr(swaps, "_on_image_of", lambda pr, g, t, tol: one.get((g, t), set()))
     assert swaps.swapped_pairings(scene, wires, weak, 90.0, DetectOptions(), 1.5)[0] == set()
     both = {(1, 0): {0, 1}, (2, 0): {2, 3}}
-    monkeypatch.setattr(
-        swaps, "_on_image_of", lambda sc, g, t, tol: both.get((g.wire_id, t.wire_id), set())
-    )
+    monkeypatch.setattr(swaps, "_on_image_of", lambda pr, g, t, tol: both.get((g, t), set()))
     strong = [SimpleNamespace(geometry="strong")] * 3
     assert swaps.swapped_pairings(scene, wires, strong, 90.0, DetectOptions(), 1.5)[0] == set()
 
@@ -103,7 +97,11 @@ def test_another_wires_line_beside_it_is_left_out(nadir_view):
     img += 60 * np.exp(-0.5 * ((rows - 154.0) / 0.7) ** 2)
     scene = SimpleNamespace(images=[nadir_view(np.clip(img, 0, 255).astype(np.uint8))])
     wire, other = _flat_wire(0, 0.0), _flat_wire(1, -4 / (1000 / 30))
-    alone = swaps._disagreement(scene, wire, [], {}, 90.0, DetectOptions(), 6.0, 1.5)
+    alone = swaps._disagreement(
+        swaps._Projected(scene, [wire]), 0, {}, 90.0, DetectOptions(), 6.0, 1.5
+    )
     assert alone == pytest.approx(4.0, abs=0.25)
-    beside = swaps._disagreement(scene, wire, [other], {}, 90.0, DetectOptions(), 6.0, 1.5)
+    beside = swaps._disagreement(
+        swaps._Projected(scene, [wire, other]), 0, {}, 90.0, DetectOptions(), 6.0, 1.5
+    )
     assert beside == pytest.approx(0.0, abs=0.25)
