@@ -21,6 +21,7 @@ import numpy as np
 import numpy.typing as npt
 from scipy.spatial import cKDTree
 
+from .coverage import WireCoverage
 from .scene import GroundModel
 from .support import WireSupport
 from .wires import FittedWire
@@ -195,16 +196,25 @@ SUPPORT_COLUMNS = (
     "confirming_strips",
     "advice",
 )
+COVERAGE_COLUMNS = ("measured_share", "gaps", "longest_gap_m", "flight_limited_gap_m")
 
 
 def measures_csv(
-    measures: Sequence[WireMeasures], supports: Sequence[WireSupport] | None = None
+    measures: Sequence[WireMeasures],
+    supports: Sequence[WireSupport] | None = None,
+    coverage: Sequence[WireCoverage] | None = None,
 ) -> str:
     """One row per wire (the columns of :data:`CSV_COLUMNS`, then with ``supports`` those of
-    :data:`SUPPORT_COLUMNS`), millimetre precision."""
+    :data:`SUPPORT_COLUMNS`, with ``coverage`` those of :data:`COVERAGE_COLUMNS`: the gaps
+    listed in ``wires.json``, their summed length that the images cannot measure),
+    millimetre precision."""
     buf = io.StringIO()
     writer = csv.writer(buf, lineterminator="\n")
-    writer.writerow(CSV_COLUMNS + (SUPPORT_COLUMNS if supports is not None else ()))
+    writer.writerow(
+        CSV_COLUMNS
+        + (SUPPORT_COLUMNS if supports is not None else ())
+        + (COVERAGE_COLUMNS if coverage is not None else ())
+    )
     for k, m in enumerate(measures):
         row: list[Any] = [m.wire_id, m.kind]
         row += [
@@ -233,5 +243,9 @@ def measures_csv(
             row.append("" if sup.traced_share is None else f"{sup.traced_share:.3f}")
             row.append(sup.confirming_strips)
             row.append(sup.advice or "")
+        if coverage is not None:
+            cov = coverage[k]
+            row += [f"{cov.measured_share:.3f}", len(cov.gaps), f"{cov.longest_gap_m:.3f}"]
+            row.append(f"{sum(g.length_m for g in cov.gaps if g.flight_limited):.3f}")
         writer.writerow(row)
     return buf.getvalue()

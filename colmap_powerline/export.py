@@ -24,6 +24,7 @@ import numpy.typing as npt
 import open3d as o3d
 
 from .clearance import WireMeasures, measures_csv
+from .coverage import WireCoverage
 from .support import WireSupport
 from .wires import FittedWire
 
@@ -180,6 +181,7 @@ def export_results(
     to_crs: tuple[Callable[[F64], F64], str] | None = None,
     measures: Sequence[WireMeasures] | None = None,
     supports: Sequence[WireSupport] | None = None,
+    coverage: Sequence[WireCoverage] | None = None,
 ) -> dict[str, Path]:
     """Write the output contract of DESIGN.md into ``output_path``; returns the files.
 
@@ -201,8 +203,13 @@ def export_results(
     if supports is not None:
         for d, sup in zip(wire_docs, supports, strict=True):
             d["support"] = sup.to_json()
+    if coverage is not None:
+        for d, cov in zip(wire_docs, coverage, strict=True):
+            d["coverage"] = cov.to_json()
     if to_crs is not None:
         for d in wire_docs:
+            for gap in d.get("coverage", {}).get("gaps", []):
+                gap["at"] = convert(np.array([gap["at"]]))[0].tolist()
             for key in ("ends", "polyline"):
                 d[key] = np.round(convert(np.array(d[key])), 4).tolist()
             d["lowest_point"] = convert(np.array([d["lowest_point"]]))[0].tolist()
@@ -215,7 +222,7 @@ def export_results(
     text = json.dumps(_finite(doc), allow_nan=False)
     out["wires.json"] = write_atomic(output_path / "wires.json", lambda p: p.write_text(text))
     if measures is not None:
-        table = measures_csv(measures, supports)
+        table = measures_csv(measures, supports, coverage)
         out["wires.csv"] = write_atomic(output_path / "wires.csv", lambda p: p.write_text(table))
     dense = [w.polyline(sample_step) for w in wires]
     ids = (

@@ -21,6 +21,7 @@ from scipy.spatial import cKDTree
 from tqdm import tqdm
 
 from .clearance import WireMeasures, assign_kinds, measure_wire
+from .coverage import WireCoverage, log_coverage, measured_coverage
 from .dense import dense_ground, fill, open_ply
 from .detect import DetectOptions, WireMask, detect_wires
 from .errors import InputError, PairGeometryError
@@ -136,6 +137,8 @@ class ReconstructionResult:
     supports: list[WireSupport]  # how well the views support each wire
     georeference: Georeference | None  # how the model is in metres (None: it is not)
     outputs: dict[str, Path] = field(default_factory=dict)
+    coverage: list[WireCoverage] = field(default_factory=list)  # where each wire was
+    # measured, and why not elsewhere
 
 
 def _direction_deg(uv: npt.NDArray[np.float64]) -> float:
@@ -675,6 +678,18 @@ def reconstruct(
         )
 
     t0 = time.perf_counter()
+    coverage = measured_coverage(
+        scene,
+        wires,
+        verified.pts_in_world,
+        options.wires.inlier_distance,
+        options.trace.reach_px,
+        options.detect.side_offset_px,
+        options.verify.crossing_offset,
+    )
+    log_coverage(wires, coverage)
+    timings["coverage"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
     ground, source = scene.ground, "sparse points"
     if options.dense_path is not None:
         ground, source = dense_ground(open_ply(options.dense_path)), "dense cloud"
@@ -694,6 +709,7 @@ def reconstruct(
         measures,
         supports,
         georef,
+        coverage=coverage,
     )
     if options.min_clearance_m is not None:
         flagged = [m for m in measures if m.flagged]
@@ -721,6 +737,7 @@ def reconstruct(
             to_crs=crs,
             measures=measures,
             supports=supports,
+            coverage=coverage,
         )
         wkt = crs_wkt(georef, options.output_crs)
         if options.las:

@@ -143,6 +143,22 @@ def _profile(
             alpha=0.25,
             label=f"closer than {limit:g} {units}" if j == 0 else None,
         )
+    labelled: set[bool] = set()
+    for g in result.coverage[k].gaps if k < len(result.coverage) else ():
+        label = (
+            "not measurable from these images"
+            if g.flight_limited
+            else "not measured (the catenary spans it)"
+        )
+        ax.axvspan(
+            g.from_m,
+            g.to_m,
+            color="tab:orange" if g.flight_limited else "0.5",
+            alpha=0.2,
+            hatch="//",
+            label=None if g.flight_limited in labelled else label,
+        )
+        labelled.add(g.flight_limited)
     ax.set_xlabel(f"distance along the wire from its first end ({units})")
     ax.set_ylabel(f"height ({units})")
     ax.set_title(
@@ -232,6 +248,15 @@ def _cameras(result: ReconstructionResult, units: str, path: Path) -> Path:
     return _save(fig, path)
 
 
+def _measured(result: ReconstructionResult, k: int) -> str:
+    """The table cell: measured share and longest gap of wire ``k``."""
+    if k >= len(result.coverage):
+        return ""
+    cov = result.coverage[k]
+    gap = f" (gap {cov.longest_gap_m:.1f})" if cov.gaps else ""
+    return f"{100 * cov.measured_share:.0f} %{gap}"
+
+
 def write_report(
     result: ReconstructionResult,
     output_path: Path,
@@ -267,8 +292,9 @@ def write_report(
         f"<tr><td>{w.wire_id}</td><td>{m.kind}</td><td>{m.span_length_m:.2f}</td>"
         f"<td>{m.sag_max_m:.3f}</td><td>{m.sag_midspan_m:.3f}</td>"
         f"<td>{m.clearance_vertical_m:.2f}</td><td>{m.clearance_3d_m:.2f}</td>"
-        f"<td>{len(m.flagged)}</td><td>{len(w.point_indices)}</td><td>{w.rms_residual:.3f}</td></tr>"
-        for w, m in zip(result.wires, result.measures, strict=True)
+        f"<td>{len(m.flagged)}</td><td>{len(w.point_indices)}</td><td>{w.rms_residual:.3f}</td>"
+        f"<td>{_measured(result, k)}</td></tr>"
+        for k, (w, m) in enumerate(zip(result.wires, result.measures, strict=True))
     )
     limit = (
         f"<p>Stretches closer than {options.min_clearance_m:g} {units} to the ground are "
@@ -290,7 +316,11 @@ def write_report(
         f"{len(result.pairs)} pairs, {len(result.scene)} images. Units: {units}.</p>{limit}"
         "<table><tr><th>wire</th><th>kind</th><th>span</th><th>sag max</th><th>sag mid</th>"
         "<th>clearance vertical</th><th>clearance 3D</th><th>flagged</th><th>points</th>"
-        f"<th>fit RMS</th></tr>{rows}</table>{imgs}</body></html>"
+        f"<th>fit RMS</th><th>measured</th></tr>{rows}</table>"
+        "<p>Measured: the share of the wire between its ends that its measured points cover, "
+        "and its longest unmeasured stretch (hatched in the profiles; orange where these "
+        "images cannot measure it, with what to fly in the log and in <code>wires.json</code>)."
+        f"</p>{imgs}</body></html>"
     )
     index = write_atomic(out / "index.html", lambda p: p.write_text(page))
     logger.info("report: %s (%d figures)", index, len(figures))

@@ -112,9 +112,15 @@ def test_outputs_follow_the_contract(run, medium_span):
     assert all(w["measures"]["ground_source"] == "dense cloud" for w in doc["wires"])
     low = [w for w in doc["wires"] if w["measures"]["clearance_vertical_m"] < 21.0]
     assert low and all(w["measures"]["flagged"] for w in low)
+    # Where each wire was measured: its share between its ends and its gaps, each with why.
+    shares = [w["coverage"]["measured_share"] for w in doc["wires"]]
+    assert all(0 <= x <= 1 for x in shares) and np.median(shares) > 0.9
+    for w, cov in zip(doc["wires"], result.coverage, strict=True):
+        assert [g["why"] for g in w["coverage"]["gaps"]] == [g.why for g in cov.gaps]
     # The report: every figure it promises, and a page linking them.
     report = out / "report"
     page = (report / "index.html").read_text()
+    assert "<th>measured</th>" in page
     names = ["plan.png", "cameras.png"]
     names += [f"profile_{k}.png" for k in range(len(result.wires))]
     names += [f"pair_{k}.png" for k in range(len(result.pairs))]

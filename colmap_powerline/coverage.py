@@ -1,0 +1,297 @@
+"""Where each wire was measured, and why not elsewhere.
+
+A wire's catenary runs between its observed ends; its measured points (the pairs' verified
+matches and the points traced in every view) need not cover all of it. Where they do not,
+the curve is an interpolation, and an inspector has to know where and why: a stretch that
+the flight's images cannot measure needs more images; one they see clearly but where the
+wire was not found is a contrast problem that more images of the same kind do not mend.
+
+Along each wire, a place counts as measured where a measured point of it lies within
+``radius`` along the wire (the fit's inlier distance: what counts as the wire across it counts
+along it). Runs of unmeasured places at least ``MIN_REPORTED_GAP`` long are the gaps.
+At each gap's middle, every image that sees it is asked whether another wire's image lies
+within the reach of the line search there (trace's rule: the searched line and the other
+line's template response can meet); those clear of it are grouped by their position across
+the wire, as the support check groups strips. Tracing fixes a place from three views or
+more (two fix it, the third checks it) at two or more positions across the wire, so a gap
+with fewer is one the flight cannot measure; with enough, the views saw the place and did
+not find the wire.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Sequence
+from dataclasses import asdict, dataclass
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from .scene import Scene, SceneImage
+from .support import _strips
+from .trace import MIN_VIEWS, _response_reach
+from .verify import _roughly_in_view
+from .wires import FittedWire
+
+logger = logging.getLogger(__name__)
+
+F64 = npt.NDArray[np.float64]
+
+# Unmeasured runs shorter than this (model units) are not listed: the catenary spans them
+# within its fit accuracy, and a list of every missing decimetre would hide the stretches
+# that matter. They still count against the measured share.
+MIN_REPORTED_GAP = 1.0
+
+# How far along the other wires their images are sampled either side of a gap's middle
+# (model units), and how finely: enough to find where each crosses the gap's image normal.
+_OTHER_HALF_LENGTH = 3.0
+_OTHER_STEP = 0.01
+
+# The reasons, from the views' geometry at a gap's middle.
+UNSEEN = "no image sees it"
+FEW_VIEWS = "too few images see it clear of the other wires"
+ONE_POSITION = "the images that see it clear of the other wires are all at one position across it"
+NOT_FOUND = "the images see it, but the wire was not found in them there"
+
+
+@dataclass(frozen=True)
+class MeasurementGap:
+    """A stretch of a wire with no measured point: its curve there is interpolated."""
+
+    from_m: float  # horizontal distance from the wire's first end, like its measures
+    to_m: float
+    at: tuple[float, float, float]  # its middle, on the curve
+    views: int  # images that see its middle
+    clear_views: int  # of those, the images where no other wire's line is within reach
+    clear_positions: int  # distinct positions across the wire of those clear images
+    why: str  # one of UNSEEN, FEW_VIEWS, ONE_POSITION, NOT_FOUND
+
+    @property
+    def length_m(self) -> float:
+        return self.to_m - self.from_m
+
+    @property
+    def flight_limited(self) -> bool:
+        """The images cannot measure it: more images would."""
+        return self.why != NOT_FOUND
+
+    def describe(self) -> str:
+        where = (
+            f"{self.from_m:.1f}-{self.to_m:.1f} from its first end, "
+            f"near ({self.at[0]:.1f}, {self.at[1]:.1f})"
+        )
+        if self.why == UNSEEN:
+            detail = UNSEEN
+        elif self.why == FEW_VIEWS:
+            detail = (
+                f"only {self.clear_views} image(s) see it"
+                if self.clear_views == self.views
+                else f"only {self.clear_views} of the {self.views} images that see it are "
+                "clear of the other wires there"
+            )
+        elif self.why == ONE_POSITION:
+            detail = (
+                f"the {self.clear_views} images clear of the other wires there are all at "
+                "one position across it"
+            )
+        else:
+            detail = (
+                f"{self.clear_views} images from {self.clear_positions} positions across it "
+                "see it clear of the other wires, but no measurement of it there passed (the "
+                "wire faint against the ground there, or the images disagreeing on where it is)"
+            )
+        return f"{self.length_m:.1f} unmeasured at {where}: {detail}"
+
+    def to_json(self) -> dict[str, Any]:
+        out = asdict(self)
+        out["at"] = list(self.at)
+        out["length_m"] = round(self.length_m, 3)
+        return out
+
+
+@dataclass(frozen=True)
+class WireCoverage:
+    measured_share: float  # of the wire between its ends, the share within ``radius`` of a
+    # measured point of it (along the wire)
+    gaps: tuple[MeasurementGap, ...]  # unmeasured runs at least MIN_REPORTED_GAP long
+
+    @property
+    def longest_gap_m(self) -> float:
+        return max((g.length_m for g in self.gaps), default=0.0)
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "measured_share": round(self.measured_share, 4),
+            "longest_gap_m": round(self.longest_gap_m, 3),
+            "gaps": [g.to_json() for g in self.gaps],
+        }
+
+
+def _unmeasured_runs(
+    wire: FittedWire, s_pts: F64, radius: float, step: float
+) -> tuple[float, list[tuple[float, float]]]:
+    """The measured share of the wire between its ends and its unmeasured runs (s, from the
+    first end), each at least MIN_REPORTED_GAP long."""
+    lo, hi = wire.s_range
+    n = max(int(np.ceil((hi - lo) / step)) + 1, 2)
+    grid = np.linspace(lo, hi, n)
+    s_pts = np.sort(s_pts)
+    if len(s_pts) == 0:
+        return 0.0, [(0.0, hi - lo)] if hi - lo >= MIN_REPORTED_GAP else []
+    # Distance along the wire to the nearest measured point, from the two either side.
+    j = np.searchsorted(s_pts, grid)
+    before = s_pts[np.clip(j - 1, 0, len(s_pts) - 1)]
+    after = s_pts[np.clip(j, 0, len(s_pts) - 1)]
+    covered = np.minimum(np.abs(grid - before), np.abs(grid - after)) <= radius
+    runs = []
+    change = np.diff(np.r_[0, (~covered).astype(np.int8), 0])
+    starts, stops = np.flatnonzero(change == 1), np.flatnonzero(change == -1)
+    for a, b in zip(starts, stops, strict=True):
+        # From the last measured place before it to the first after it (the curve's ends
+        # where it reaches them).
+        s_a = grid[a - 1] if a > 0 else grid[0]
+        s_b = grid[b] if b < len(grid) else grid[-1]
+        if s_b - s_a >= MIN_REPORTED_GAP:
+            runs.append((float(s_a - lo), float(s_b - lo)))
+    return float(covered.mean()), runs
+
+
+def _clear_of_others(
+    view: SceneImage,
+    wire: FittedWire,
+    at: F64,
+    others: Sequence[FittedWire],
+    reach: float,
+) -> bool:
+    """Whether no other wire's image passes within ``reach`` px of this wire's line at
+    ``at`` (measured across this wire's image direction, where the other crosses its
+    normal), in ``view``."""
+    s = float(wire.plane_coords(at[None])[0][0])
+    ends = wire.points(np.array([s - 0.5, s + 0.5]))
+    uv, _, _ = view.project(np.r_[at[None], ends])
+    if not np.isfinite(uv).all():
+        return True
+    tangent = uv[2] - uv[1]
+    tangent /= max(float(np.linalg.norm(tangent)), 1e-12)
+    normal = np.array([-tangent[1], tangent[0]])
+    for other in others:
+        s_o = float(other.plane_coords(at[None])[0][0])
+        lo = max(s_o - _OTHER_HALF_LENGTH, other.s_range[0])
+        hi = min(s_o + _OTHER_HALF_LENGTH, other.s_range[1])
+        if hi <= lo:
+            continue
+        samples = other.points(np.arange(lo, hi + _OTHER_STEP, _OTHER_STEP))
+        uv_o, _, _ = view.project(samples)
+        ok = np.isfinite(uv_o).all(axis=1)
+        if not ok.any():
+            continue
+        rel = uv_o[ok] - uv[0]
+        along, across = rel @ tangent, rel @ normal
+        i = int(np.argmin(np.abs(along)))
+        if abs(along[i]) <= 1.0 and abs(across[i]) <= reach:
+            return False
+    return True
+
+
+def _diagnose(
+    scene: Scene,
+    wire: FittedWire,
+    others: Sequence[FittedWire],
+    at: F64,
+    reach: float,
+    crossing_offset: float,
+) -> tuple[int, int, int, str]:
+    """(views, clear views, their positions across the wire, why) at a gap's middle."""
+    seeing = [
+        v
+        for v in scene.images
+        if _roughly_in_view(v, at[None], 0.0)[0] and v.project(at[None])[2][0]
+    ]
+    if not seeing:
+        return 0, 0, 0, UNSEEN
+    clear = [v for v in seeing if _clear_of_others(v, wire, at, others, reach)]
+    d = wire.plane_direction_xy
+    normal = np.array([d[1], -d[0]])
+    centres = np.array([v.center_in_world for v in clear]).reshape(-1, 3)
+    lateral = (centres[:, :2] - wire.plane_origin_xy) @ normal
+    height = float(np.median(scene.centers_in_world[:, 2]) - at[2])
+    positions = len(_strips(lateral, crossing_offset * height)) if len(clear) else 0
+    if len(clear) < MIN_VIEWS:
+        why = FEW_VIEWS
+    elif positions < 2:
+        why = ONE_POSITION
+    else:
+        why = NOT_FOUND
+    return len(seeing), len(clear), positions, why
+
+
+def measured_coverage(
+    scene: Scene,
+    wires: Sequence[FittedWire],
+    pts_in_world: F64,
+    radius: float,
+    reach_px: float,
+    side_offset_px: int,
+    crossing_offset: float,
+    step: float = 0.1,
+) -> list[WireCoverage]:
+    """Each wire's measured share and its gaps, with what the views could do there (module
+    docstring). ``pts_in_world``: the points the wires index; ``radius``: how far along the
+    wire a measured point covers it; ``reach_px``, ``side_offset_px``: trace's line search
+    and the detector's template (how near another wire's line spoils the search);
+    ``crossing_offset``: views closer across the wire than this times their height above
+    it are at one position."""
+    reach = _response_reach(reach_px, side_offset_px)
+    out = []
+    for k, wire in enumerate(wires):
+        s_pts = wire.plane_coords(pts_in_world[wire.point_indices])[0]
+        share, runs = _unmeasured_runs(wire, s_pts, radius, step)
+        others = [w for j, w in enumerate(wires) if j != k]
+        gaps = []
+        for a, b in runs:
+            at = wire.points(np.array([wire.s_range[0] + 0.5 * (a + b)]))[0]
+            views, clear, positions, why = _diagnose(
+                scene, wire, others, at, reach, crossing_offset
+            )
+            gaps.append(
+                MeasurementGap(
+                    from_m=round(a, 3),
+                    to_m=round(b, 3),
+                    at=(float(at[0]), float(at[1]), float(at[2])),
+                    views=views,
+                    clear_views=clear,
+                    clear_positions=positions,
+                    why=why,
+                )
+            )
+        out.append(WireCoverage(share, tuple(gaps)))
+    return out
+
+
+def log_coverage(wires: Sequence[FittedWire], coverage: Sequence[WireCoverage]) -> None:
+    """One line per wire with gaps: its measured share and its longest gap, why; a warning
+    where the flight cannot measure a stretch (what to fly)."""
+    for wire, cov in zip(wires, coverage, strict=True):
+        if not cov.gaps:
+            continue
+        longest = max(cov.gaps, key=lambda g: g.length_m)
+        flight = [g for g in cov.gaps if g.flight_limited]
+        log = logger.warning if flight else logger.info
+        log(
+            "coverage: wire %d measured along %.0f %% of its length, %d gap(s) of %.1f or "
+            "more; the longest: %s%s",
+            wire.wire_id,
+            100 * cov.measured_share,
+            len(cov.gaps),
+            MIN_REPORTED_GAP,
+            longest.describe(),
+            (
+                f". {sum(g.length_m for g in flight):.1f} of it the images cannot measure: "
+                f"a few images offset across the line near "
+                + ", ".join(f"({g.at[0]:.0f}, {g.at[1]:.0f})" for g in flight[:3])
+                + " would"
+            )
+            if flight
+            else "",
+        )

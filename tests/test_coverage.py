@@ -1,0 +1,156 @@
+"""Where each wire was measured, and why not elsewhere: exact pinhole views of straight wires."""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+from pathlib import Path
+
+import numpy as np
+import pycolmap
+import pytest
+
+from colmap_powerline.clearance import measure_wire, measures_csv
+from colmap_powerline.coverage import (
+    FEW_VIEWS,
+    MIN_REPORTED_GAP,
+    NOT_FOUND,
+    ONE_POSITION,
+    UNSEEN,
+    measured_coverage,
+)
+from colmap_powerline.export import export_results
+from colmap_powerline.scene import Scene, SceneImage
+from colmap_powerline.wires import FittedWire
+
+HEIGHT = 20.0  # the wire, 30 m below the cameras
+
+
+def _view(k: int, x: float, y: float) -> SceneImage:
+    """A 2000 × 1500 px nadir view 50 m up at (x, y), f = 1000 px (60 × 45 m at the wire)."""
+    camera = pycolmap.Camera(
+        model="PINHOLE", width=2000, height=1500, params=[1000, 1000, 1000, 750], camera_id=1
+    )
+    rot = np.diag([1.0, -1.0, -1.0])
+    return SceneImage(k, f"v{k}.jpg", Path(f"v{k}.jpg"), camera, rot, -rot @ [x, y, 50.0])
+
+
+def _scene(positions) -> Scene:
+    ground = np.array([[x, y, 0.0] for x in (-50, 0, 50) for y in (-50, 0, 50)])
+    return Scene(
+        Path("."),
+        Path("."),
+        tuple(_view(k + 1, x, y) for k, (x, y) in enumerate(positions)),
+        ground,
+        np.zeros((len(ground), 3), np.uint8),
+        np.zeros(len(ground)),
+        np.full(len(ground), 3),
+    )
+
+
+def _wire(wire_id: int, y: float, z: float, s: np.ndarray, base: int = 0):
+    """A straight wire along x at (y, z) (a very flat catenary), its points at ``s``."""
+    wire = FittedWire(
+        wire_id,
+        np.array([0.0, y]),
+        np.array([1.0, 0.0]),
+        1e7,
+        0.0,
+        z,
+        (-30.0, 30.0),
+        base + np.arange(len(s)),
+        0.01,
+    )
+    return wire, wire.points(s)
+
+
+# Measured from -30 to 30 but for a 10 m hole in the middle and a 0.5 m one at +20.
+S = np.r_[np.arange(-30.0, -5.0, 0.05), np.arange(5.0, 19.8, 0.05), np.arange(20.3, 30.01, 0.05)]
+
+
+def _coverage(positions, others=()):
+    wire, pts = _wire(0, 0.0, HEIGHT, S)
+    wires, all_pts = [wire], [pts]
+    for k, (y, z) in enumerate(others):
+        o, p = _wire(k + 1, y, z, np.arange(-30.0, 30.01, 0.05), sum(map(len, all_pts)))
+        wires.append(o)
+        all_pts.append(p)
+    cov = measured_coverage(_scene(positions), wires, np.concatenate(all_pts), 0.12, 3.0, 1, 0.15)
+    return cov[0]
+
+
+def test_the_gaps_and_the_measured_share():
+    cov = _coverage([(0, -15), (0, -5), (0, 5), (0, 15)])
+    # 10 m of 60 unmeasured, less the inlier radius at either side; the 0.5 m hole: 0.26 m.
+    assert cov.measured_share == pytest.approx(1 - (10 - 0.24 + 0.26) / 60, abs=0.005)
+    (gap,) = cov.gaps  # the 0.5 m hole is shorter than MIN_REPORTED_GAP
+    assert MIN_REPORTED_GAP > 0.5
+    assert gap.from_m == pytest.approx(25.0, abs=0.15) and gap.to_m == pytest.approx(35.0, abs=0.15)
+    assert gap.at == pytest.approx((0.0, 0.0, HEIGHT), abs=0.1)
+    assert cov.longest_gap_m == pytest.approx(10.0, abs=0.3)
+
+
+def test_a_gap_the_views_see_clearly_is_a_wire_not_found():
+    gap = _coverage([(0, -15), (0, -5), (0, 5), (0, 15)]).gaps[0]
+    assert (gap.views, gap.clear_views, gap.clear_positions) == (4, 4, 4)
+    assert gap.why == NOT_FOUND and not gap.flight_limited
+
+
+def test_a_gap_two_views_see_is_one_the_flight_cannot_measure():
+    # Two views see the middle; the others are 60 m away along the line.
+    gap = _coverage([(0, -15), (0, 15), (-60, -15), (60, 15)]).gaps[0]
+    assert (gap.views, gap.clear_views) == (2, 2)
+    assert gap.why == FEW_VIEWS and gap.flight_limited
+    assert "only 2 image(s) see it" in gap.describe()
+
+
+def test_a_view_where_another_wire_lies_on_it_is_not_clear():
+    # A wire 15 m higher, halfway towards the views at y = +15 m: on the same rays from them.
+    gap = _coverage([(-3, 15), (3, 15), (0, -15), (0, -5)], others=[(7.5, 35.0)]).gaps[0]
+    assert (gap.views, gap.clear_views) == (4, 2)
+    assert gap.why == FEW_VIEWS
+    assert "only 2 of the 4 images that see it are clear" in gap.describe()
+    # Beside it by more than the search's reach, it spoils none.
+    gap = _coverage([(-3, 15), (3, 15), (0, -15), (0, -5)], others=[(9.0, 35.0)]).gaps[0]
+    assert gap.clear_views == 4 and gap.why == NOT_FOUND
+
+
+def test_views_at_one_position_across_the_wire_cannot_fix_it():
+    gap = _coverage([(-6, 10), (0, 10), (6, 10)]).gaps[0]
+    assert (gap.views, gap.clear_views, gap.clear_positions) == (3, 3, 1)
+    assert gap.why == ONE_POSITION and gap.flight_limited
+
+
+def test_a_gap_no_view_sees():
+    gap = _coverage([(-60, 0), (60, 0)]).gaps[0]
+    assert gap.views == 0 and gap.why == UNSEEN
+
+
+def test_coverage_in_wires_json_and_csv(tmp_path):
+    wire, pts = _wire(0, 0.0, HEIGHT, S)
+    scene = _scene([(0, -15), (0, 15)])
+    cov = measured_coverage(scene, [wire], pts, 0.12, 3.0, 1, 0.15)
+    measures = [measure_wire(wire, scene.ground)]
+    export_results(
+        tmp_path,
+        wires=[wire],
+        points=pts,
+        labels=np.zeros(len(pts), np.int64),
+        primitives=None,
+        metadata={},
+        measures=measures,
+        coverage=cov,
+        to_crs=(lambda xyz: xyz + [1000.0, 2000.0, 0.0], "shifted"),
+    )
+    doc = json.loads((tmp_path / "wires.json").read_text())["wires"][0]["coverage"]
+    assert doc["measured_share"] == pytest.approx(cov[0].measured_share, abs=1e-4)
+    (gap,) = doc["gaps"]
+    assert gap["why"] == FEW_VIEWS and gap["length_m"] == pytest.approx(10.0, abs=0.3)
+    assert gap["at"] == pytest.approx([1000.0, 2000.0, HEIGHT], abs=0.1)  # in the output CRS
+    rows = list(csv.DictReader(io.StringIO((tmp_path / "wires.csv").read_text())))
+    assert float(rows[0]["longest_gap_m"]) == pytest.approx(10.0, abs=0.3)
+    assert float(rows[0]["flight_limited_gap_m"]) == pytest.approx(10.0, abs=0.3)
+    assert rows[0]["gaps"] == "1"
+    # Without coverage the table keeps its columns.
+    assert "measured_share" not in measures_csv(measures).splitlines()[0]
