@@ -157,6 +157,12 @@ def _unmeasured_runs(
     return float(covered.mean()), runs
 
 
+def _passes_through(wire: FittedWire, at: F64, distance: float) -> bool:
+    """Whether ``wire``, between its ends, passes within ``distance`` of ``at``."""
+    s = float(wire.plane_coords(at[None])[0][0])
+    return wire.s_range[0] <= s <= wire.s_range[1] and float(wire.distance(at[None])[0]) <= distance
+
+
 def _clear_of_others(
     view: SceneImage,
     wire: FittedWire,
@@ -247,10 +253,14 @@ def measured_coverage(
     for k, wire in enumerate(wires):
         s_pts = wire.plane_coords(pts_in_world[wire.point_indices])[0]
         share, runs = _unmeasured_runs(wire, s_pts, radius, step)
-        others = [w for j, w in enumerate(wires) if j != k]
         gaps = []
         for a, b in runs:
             at = wire.points(np.array([wire.s_range[0] + 0.5 * (a + b)]))[0]
+            # Another wire through the same place is a piece of this one (the next span's,
+            # overlapping it at a support): its line on this one's is no other wire's.
+            others = [
+                w for j, w in enumerate(wires) if j != k and not _passes_through(w, at, 2 * radius)
+            ]
             views, clear, positions, why = _diagnose(
                 scene, wire, others, at, reach, crossing_offset
             )

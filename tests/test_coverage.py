@@ -114,6 +114,10 @@ def test_a_view_where_another_wire_lies_on_it_is_not_clear():
     # Beside it by more than the search's reach, it spoils none.
     gap = _coverage([(-3, 15), (3, 15), (0, -15), (0, -5)], others=[(9.0, 35.0)]).gaps[0]
     assert gap.clear_views == 4 and gap.why == NOT_FOUND
+    # A piece of the same wire through the gap (the next span's, overlapping at a support)
+    # lies on it in every view, and is not another wire there.
+    gap = _coverage([(0, -15), (0, -5), (0, 5), (0, 15)], others=[(0.0, HEIGHT + 0.1)]).gaps[0]
+    assert gap.clear_views == 4 and gap.why == NOT_FOUND
 
 
 def test_views_at_one_position_across_the_wire_cannot_fix_it():
