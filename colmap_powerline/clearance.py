@@ -196,7 +196,13 @@ SUPPORT_COLUMNS = (
     "confirming_strips",
     "advice",
 )
-COVERAGE_COLUMNS = ("measured_share", "gaps", "longest_gap_m", "flight_limited_gap_m")
+COVERAGE_COLUMNS = (
+    "measured_share",
+    "gaps",
+    "longest_gap_m",
+    "flight_limited_gap_m",
+    "pairs_vs_traced_m",
+)
 
 
 def measures_csv(
@@ -206,7 +212,8 @@ def measures_csv(
 ) -> str:
     """One row per wire (the columns of :data:`CSV_COLUMNS`, then with ``supports`` those of
     :data:`SUPPORT_COLUMNS`, with ``coverage`` those of :data:`COVERAGE_COLUMNS`: the gaps
-    listed in ``wires.json``, their summed length that the images cannot measure),
+    listed in ``wires.json``, their summed length that the images cannot measure, how far
+    the pairs' points lie from the traced ones),
     millimetre precision."""
     buf = io.StringIO()
     writer = csv.writer(buf, lineterminator="\n")
@@ -247,5 +254,6 @@ def measures_csv(
             cov = coverage[k]
             row += [f"{cov.measured_share:.3f}", len(cov.gaps), f"{cov.longest_gap_m:.3f}"]
             row.append(f"{sum(g.length_m for g in cov.gaps if g.flight_limited):.3f}")
+            row.append("" if cov.disagreement_m is None else f"{cov.disagreement_m:.3f}")
         writer.writerow(row)
     return buf.getvalue()

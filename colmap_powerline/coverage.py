@@ -16,6 +16,16 @@ the wire, as the support check groups strips. Tracing fixes a place from three v
 more (two fix it, the third checks it) at two or more positions across the wire, so a gap
 with fewer is one the flight cannot measure; with enough, the views saw the place and did
 not find the wire.
+
+Where both kinds of measurement cover a wire, how far the pairs' points lie from the points
+traced in every view near them (within ``AGREEMENT_WINDOW`` along it) is reported too: the
+median offset across the wire and in height. Each pair's points inherit that pair's two
+images: its baseline's pose error, and a blend where another wire's line lies on this one's
+in one of them (a circuit on three levels seen from above stacks two of them in most images
+of a flight across the line). The traced points are fixed by every view that sees the place
+clearly (two lines fitted jointly where they are close). Scatter averages out of the median;
+what is left is the two measurements' disagreement: the wire's position is uncertain by
+about that much, whichever is right.
 """
 
 from __future__ import annotations
@@ -42,6 +52,12 @@ F64 = npt.NDArray[np.float64]
 # within its fit accuracy, and a list of every missing decimetre would hide the stretches
 # that matter. They still count against the measured share.
 MIN_REPORTED_GAP = 1.0
+
+# Pairs' points are compared with the traced points in bins this long along the wire (model
+# units; traced places are a few pixels apart, so a bin holds several).
+AGREEMENT_WINDOW = 0.5
+# ... holding at least this many traced points.
+MIN_TRACED_IN_WINDOW = 3
 
 # How far along the other wires their images are sampled either side of a gap's middle
 # (model units), and how finely: enough to find where each crosses the gap's image normal.
@@ -115,17 +131,70 @@ class WireCoverage:
     measured_share: float  # of the wire between its ends, the share within ``radius`` of a
     # measured point of it (along the wire)
     gaps: tuple[MeasurementGap, ...]  # unmeasured runs at least MIN_REPORTED_GAP long
+    # The median offset of the pairs' points from the traced points near them, across the
+    # wire and in height (None: too few of either to compare), and the share of the pairs'
+    # points compared.
+    pairs_vs_traced: tuple[float, float] | None = None
+    compared_share: float = 0.0
 
     @property
     def longest_gap_m(self) -> float:
         return max((g.length_m for g in self.gaps), default=0.0)
+
+    @property
+    def disagreement_m(self) -> float | None:
+        """How far apart the pairs' and the traced measurements put the wire (median)."""
+        if self.pairs_vs_traced is None:
+            return None
+        return float(np.hypot(*self.pairs_vs_traced))
 
     def to_json(self) -> dict[str, Any]:
         return {
             "measured_share": round(self.measured_share, 4),
             "longest_gap_m": round(self.longest_gap_m, 3),
             "gaps": [g.to_json() for g in self.gaps],
+            "pairs_vs_traced": None
+            if self.pairs_vs_traced is None
+            else {
+                "across_m": round(self.pairs_vs_traced[0], 4),
+                "height_m": round(self.pairs_vs_traced[1], 4),
+                "distance_m": round(float(np.hypot(*self.pairs_vs_traced)), 4),
+                "compared_share": round(self.compared_share, 3),
+            },
         }
+
+
+def _pairs_vs_traced(
+    wire: FittedWire, pts_in_world: F64, from_pairs: npt.NDArray[np.bool_]
+) -> tuple[tuple[float, float] | None, float]:
+    """The median (across, height) offset of the wire's pairs' points from its traced points
+    in the same ``AGREEMENT_WINDOW`` along it, and the share of its pairs' points compared."""
+    idx = wire.point_indices
+    s, across, dz = wire.plane_coords(pts_in_world[idx])
+    paired = from_pairs[idx]
+    if paired.sum() == 0 or (~paired).sum() < MIN_TRACED_IN_WINDOW:
+        return None, 0.0
+    lo = float(s.min())
+    b = np.floor((s - lo) / AGREEMENT_WINDOW).astype(np.int64)
+    traced = ~paired
+    n_bins = int(b.max()) + 1
+    count = np.bincount(b[traced], minlength=n_bins)
+    # Per bin, the traced points' median across and height (bins are few: a loop is cheap).
+    ref = np.full((n_bins, 2), np.nan)
+    order = np.argsort(b[traced], kind="stable")
+    tb = b[traced][order]
+    ta, tz = across[traced][order], dz[traced][order]
+    starts = np.searchsorted(tb, np.arange(n_bins))
+    for k in np.flatnonzero(count >= MIN_TRACED_IN_WINDOW):
+        sl = slice(starts[k], starts[k] + count[k])
+        ref[k] = (np.median(ta[sl]), np.median(tz[sl]))
+    pb = b[paired]
+    ok = np.isfinite(ref[pb, 0])
+    if not ok.any():
+        return None, 0.0
+    d_across = across[paired][ok] - ref[pb[ok], 0]
+    d_height = dz[paired][ok] - ref[pb[ok], 1]
+    return (float(np.median(d_across)), float(np.median(d_height))), float(ok.mean())
 
 
 def _unmeasured_runs(
@@ -240,6 +309,7 @@ def measured_coverage(
     reach_px: float,
     side_offset_px: int,
     crossing_offset: float,
+    from_pairs: npt.NDArray[np.bool_] | None = None,
     step: float = 0.1,
 ) -> list[WireCoverage]:
     """Each wire's measured share and its gaps, with what the views could do there (module
@@ -247,7 +317,8 @@ def measured_coverage(
     wire a measured point covers it; ``reach_px``, ``side_offset_px``: trace's line search
     and the detector's template (how near another wire's line spoils the search);
     ``crossing_offset``: views closer across the wire than this times their height above
-    it are at one position."""
+    it are at one position; ``from_pairs`` (N,): the points the pairs measured (the others
+    traced in every view; None: no comparison)."""
     reach = _response_reach(reach_px, side_offset_px)
     out = []
     for k, wire in enumerate(wires):
@@ -275,14 +346,37 @@ def measured_coverage(
                     why=why,
                 )
             )
-        out.append(WireCoverage(share, tuple(gaps)))
+        offset, compared = (
+            _pairs_vs_traced(wire, pts_in_world, from_pairs)
+            if from_pairs is not None
+            else (None, 0.0)
+        )
+        out.append(WireCoverage(share, tuple(gaps), offset, compared))
     return out
 
 
-def log_coverage(wires: Sequence[FittedWire], coverage: Sequence[WireCoverage]) -> None:
+def log_coverage(
+    wires: Sequence[FittedWire], coverage: Sequence[WireCoverage], radius: float
+) -> None:
     """One line per wire with gaps: its measured share and its longest gap, why; a warning
-    where the flight cannot measure a stretch (what to fly)."""
+    where the flight cannot measure a stretch (what to fly). Per wire, how far its pairs'
+    points lie from its traced ones: a warning beyond the bound tracing holds its own
+    points to (``radius`` / 2.33: within the inlier distance at 98 %, one-sided)."""
     for wire, cov in zip(wires, coverage, strict=True):
+        if cov.pairs_vs_traced is not None:
+            beyond = (cov.disagreement_m or 0.0) > radius / 2.33
+            (logger.warning if beyond else logger.info)(
+                "coverage: wire %d: the pairs' points lie %.3f from the traced points near "
+                "them (median; %+.3f across, %+.3f in height; %.0f %% of them compared)%s",
+                wire.wire_id,
+                cov.disagreement_m,
+                *cov.pairs_vs_traced,
+                100 * cov.compared_share,
+                ": its position is uncertain by about that much (two wires' lines on each "
+                "other in the pairs' images, or the model's pose error)"
+                if beyond
+                else "",
+            )
         if not cov.gaps:
             continue
         longest = max(cov.gaps, key=lambda g: g.length_m)

@@ -686,8 +686,9 @@ def reconstruct(
         options.trace.reach_px,
         options.detect.side_offset_px,
         options.verify.crossing_offset,
+        verified.pair_index >= 0,
     )
-    log_coverage(wires, coverage)
+    log_coverage(wires, coverage, options.wires.inlier_distance)
     timings["coverage"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     ground, source = scene.ground, "sparse points"

@@ -155,6 +155,35 @@ def test_coverage_in_wires_json_and_csv(tmp_path):
     rows = list(csv.DictReader(io.StringIO((tmp_path / "wires.csv").read_text())))
     assert float(rows[0]["longest_gap_m"]) == pytest.approx(10.0, abs=0.3)
     assert float(rows[0]["flight_limited_gap_m"]) == pytest.approx(10.0, abs=0.3)
-    assert rows[0]["gaps"] == "1"
+    assert rows[0]["gaps"] == "1" and rows[0]["pairs_vs_traced_m"] == ""  # nothing traced
     # Without coverage the table keeps its columns.
     assert "measured_share" not in measures_csv(measures).splitlines()[0]
+
+
+def test_how_far_the_pairs_points_lie_from_the_traced_ones():
+    """Traced points on the wire, the pairs' points 8 cm above it with 3 cm of scatter (a
+    blend of two wires' lines in a pair's image): the median offset is the 8 cm, in height."""
+    rng = np.random.default_rng(3)
+    s_pair = np.arange(-30.0, 30.0, 0.01)
+    s_traced = np.arange(-30.0, 30.0, 0.1)
+    wire, on = _wire(0, 0.0, HEIGHT, np.r_[s_pair, s_traced])
+    pts = (
+        on
+        + np.r_[
+            np.c_[rng.normal(0, 0.03, (len(s_pair), 2)), 0.08 + rng.normal(0, 0.03, len(s_pair))],
+            rng.normal(0, 0.01, (len(s_traced), 3)),
+        ]
+    )
+    from_pairs = np.r_[np.ones(len(s_pair), bool), np.zeros(len(s_traced), bool)]
+    scene = _scene([(0, -15), (0, -5), (0, 5), (0, 15)])
+    (cov,) = measured_coverage(scene, [wire], pts, 0.12, 3.0, 1, 0.15, from_pairs)
+    assert cov.pairs_vs_traced is not None and cov.compared_share > 0.99  # the last bin: 1 traced
+    across, height = cov.pairs_vs_traced
+    assert height == pytest.approx(0.08, abs=0.005) and abs(across) < 0.005
+    assert cov.disagreement_m == pytest.approx(0.08, abs=0.005)
+    assert cov.to_json()["pairs_vs_traced"]["height_m"] == pytest.approx(0.08, abs=0.005)
+    # Without traced points (or without telling them apart) there is nothing to compare.
+    (cov,) = measured_coverage(scene, [wire], pts, 0.12, 3.0, 1, 0.15, np.ones(len(pts), bool))
+    assert cov.pairs_vs_traced is None and cov.to_json()["pairs_vs_traced"] is None
+    (cov,) = measured_coverage(scene, [wire], pts, 0.12, 3.0, 1, 0.15)
+    assert cov.pairs_vs_traced is None

@@ -117,6 +117,11 @@ def test_outputs_follow_the_contract(run, medium_span):
     assert all(0 <= x <= 1 for x in shares) and np.median(shares) > 0.9
     for w, cov in zip(doc["wires"], result.coverage, strict=True):
         assert [g["why"] for g in w["coverage"]["gaps"]] == [g.why for g in cov.gaps]
+    # The pairs' points against the traced ones: compared on the traced wires, within the
+    # bound tracing holds its own points to (no two lines stack in this flight's pairs).
+    agree = [w["coverage"]["pairs_vs_traced"] for w in doc["wires"]]
+    assert sum(a is not None for a in agree) >= 3
+    assert all(a["distance_m"] < 0.12 / 2.33 for a in agree if a is not None)
     # The report: every figure it promises, and a page linking them.
     report = out / "report"
     page = (report / "index.html").read_text()
