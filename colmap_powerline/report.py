@@ -257,6 +257,13 @@ def _measured(result: ReconstructionResult, k: int) -> str:
     return f"{100 * cov.measured_share:.0f} %{gap}"
 
 
+def _agreement(result: ReconstructionResult, k: int) -> str:
+    """The table cell: how far wire ``k``'s pairs' points lie from its traced points."""
+    if k >= len(result.coverage) or result.coverage[k].disagreement_m is None:
+        return "–"
+    return f"{result.coverage[k].disagreement_m:.3f}"
+
+
 def write_report(
     result: ReconstructionResult,
     output_path: Path,
@@ -293,7 +300,7 @@ def write_report(
         f"<td>{m.sag_max_m:.3f}</td><td>{m.sag_midspan_m:.3f}</td>"
         f"<td>{m.clearance_vertical_m:.2f}</td><td>{m.clearance_3d_m:.2f}</td>"
         f"<td>{len(m.flagged)}</td><td>{len(w.point_indices)}</td><td>{w.rms_residual:.3f}</td>"
-        f"<td>{_measured(result, k)}</td></tr>"
+        f"<td>{_measured(result, k)}</td><td>{_agreement(result, k)}</td></tr>"
         for k, (w, m) in enumerate(zip(result.wires, result.measures, strict=True))
     )
     limit = (
@@ -316,10 +323,12 @@ def write_report(
         f"{len(result.pairs)} pairs, {len(result.scene)} images. Units: {units}.</p>{limit}"
         "<table><tr><th>wire</th><th>kind</th><th>span</th><th>sag max</th><th>sag mid</th>"
         "<th>clearance vertical</th><th>clearance 3D</th><th>flagged</th><th>points</th>"
-        f"<th>fit RMS</th><th>measured</th></tr>{rows}</table>"
+        f"<th>fit RMS</th><th>measured</th><th>pairs vs traced</th></tr>{rows}</table>"
         "<p>Measured: the share of the wire between its ends that its measured points cover, "
         "and its longest unmeasured stretch (hatched in the profiles; orange where these "
-        "images cannot measure it, with what to fly in the log and in <code>wires.json</code>)."
+        "images cannot measure it, with what to fly in the log and in <code>wires.json</code>). "
+        "Pairs vs traced: how far the pairs' points lie from the points traced in every view "
+        "near them (median): the wire's position is uncertain by about that much."
         f"</p>{imgs}</body></html>"
     )
     index = write_atomic(out / "index.html", lambda p: p.write_text(page))

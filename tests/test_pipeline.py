@@ -125,7 +125,7 @@ def test_outputs_follow_the_contract(run, medium_span):
     # The report: every figure it promises, and a page linking them.
     report = out / "report"
     page = (report / "index.html").read_text()
-    assert "<th>measured</th>" in page
+    assert "<th>measured</th>" in page and "<th>pairs vs traced</th>" in page
     names = ["plan.png", "cameras.png"]
     names += [f"profile_{k}.png" for k in range(len(result.wires))]
     names += [f"pair_{k}.png" for k in range(len(result.pairs))]
