@@ -37,10 +37,11 @@ from typing import Any
 
 import numpy as np
 import numpy.typing as npt
+from scipy.stats import binned_statistic
 
 from .scene import Scene, SceneImage
 from .support import _strips
-from .trace import MIN_VIEWS, _response_reach
+from .trace import MIN_VIEWS, _beside_others
 from .verify import _roughly_in_view
 from .wires import FittedWire
 
@@ -158,42 +159,31 @@ class WireCoverage:
             else {
                 "across_m": round(self.pairs_vs_traced[0], 4),
                 "height_m": round(self.pairs_vs_traced[1], 4),
-                "distance_m": round(float(np.hypot(*self.pairs_vs_traced)), 4),
+                "distance_m": round(self.disagreement_m or 0.0, 4),
                 "compared_share": round(self.compared_share, 3),
             },
         }
 
 
 def _pairs_vs_traced(
-    wire: FittedWire, pts_in_world: F64, from_pairs: npt.NDArray[np.bool_]
+    s: F64, across: F64, dz: F64, paired: npt.NDArray[np.bool_]
 ) -> tuple[tuple[float, float] | None, float]:
-    """The median (across, height) offset of the wire's pairs' points from its traced points
-    in the same ``AGREEMENT_WINDOW`` along it, and the share of its pairs' points compared."""
-    idx = wire.point_indices
-    s, across, dz = wire.plane_coords(pts_in_world[idx])
-    paired = from_pairs[idx]
-    if paired.sum() == 0 or (~paired).sum() < MIN_TRACED_IN_WINDOW:
-        return None, 0.0
-    lo = float(s.min())
-    b = np.floor((s - lo) / AGREEMENT_WINDOW).astype(np.int64)
+    """The median (across, height) offset of a wire's pairs' points (``paired``) from its
+    traced points in the same ``AGREEMENT_WINDOW`` along it, and the share of its pairs'
+    points compared; ``s``, ``across``, ``dz``: its points in its plane's coordinates."""
     traced = ~paired
-    n_bins = int(b.max()) + 1
-    count = np.bincount(b[traced], minlength=n_bins)
-    # Per bin, the traced points' median across and height (bins are few: a loop is cheap).
-    ref = np.full((n_bins, 2), np.nan)
-    order = np.argsort(b[traced], kind="stable")
-    tb = b[traced][order]
-    ta, tz = across[traced][order], dz[traced][order]
-    starts = np.searchsorted(tb, np.arange(n_bins))
-    for k in np.flatnonzero(count >= MIN_TRACED_IN_WINDOW):
-        sl = slice(starts[k], starts[k] + count[k])
-        ref[k] = (np.median(ta[sl]), np.median(tz[sl]))
-    pb = b[paired]
-    ok = np.isfinite(ref[pb, 0])
+    if not paired.any() or traced.sum() < MIN_TRACED_IN_WINDOW:
+        return None, 0.0
+    n_bins = int((s.max() - s.min()) // AGREEMENT_WINDOW) + 1
+    edges = s.min() + AGREEMENT_WINDOW * np.arange(n_bins + 1)
+    ref = binned_statistic(s[traced], [across[traced], dz[traced]], "median", bins=edges)
+    count = np.bincount(ref.binnumber - 1, minlength=n_bins)
+    b = np.clip(np.searchsorted(edges, s[paired], side="right") - 1, 0, n_bins - 1)
+    ok = count[b] >= MIN_TRACED_IN_WINDOW
     if not ok.any():
         return None, 0.0
-    d_across = across[paired][ok] - ref[pb[ok], 0]
-    d_height = dz[paired][ok] - ref[pb[ok], 1]
+    d_across = across[paired][ok] - ref.statistic[0][b[ok]]
+    d_height = dz[paired][ok] - ref.statistic[1][b[ok]]
     return (float(np.median(d_across)), float(np.median(d_height))), float(ok.mean())
 
 
@@ -237,36 +227,35 @@ def _clear_of_others(
     wire: FittedWire,
     at: F64,
     others: Sequence[FittedWire],
-    reach: float,
+    reach_px: float,
+    side_offset_px: int,
 ) -> bool:
-    """Whether no other wire's image passes within ``reach`` px of this wire's line at
-    ``at`` (measured across this wire's image direction, where the other crosses its
-    normal), in ``view``."""
+    """Whether, in ``view``, no other wire's image lies within reach of this wire's line
+    search at ``at``: trace's own test (:func:`trace._beside_others`) on the place and the
+    other wires' curves sampled either side of it."""
     s = float(wire.plane_coords(at[None])[0][0])
-    ends = wire.points(np.array([s - 0.5, s + 0.5]))
-    uv, _, _ = view.project(np.r_[at[None], ends])
+    uv, _, _ = view.project(np.r_[at[None], wire.points(np.array([s - 0.5, s + 0.5]))])
     if not np.isfinite(uv).all():
         return True
     tangent = uv[2] - uv[1]
     tangent /= max(float(np.linalg.norm(tangent)), 1e-12)
-    normal = np.array([-tangent[1], tangent[0]])
+    samples = []
     for other in others:
         s_o = float(other.plane_coords(at[None])[0][0])
         lo = max(s_o - _OTHER_HALF_LENGTH, other.s_range[0])
         hi = min(s_o + _OTHER_HALF_LENGTH, other.s_range[1])
-        if hi <= lo:
-            continue
-        samples = other.points(np.arange(lo, hi + _OTHER_STEP, _OTHER_STEP))
-        uv_o, _, _ = view.project(samples)
-        ok = np.isfinite(uv_o).all(axis=1)
-        if not ok.any():
-            continue
-        rel = uv_o[ok] - uv[0]
-        along, across = rel @ tangent, rel @ normal
-        i = int(np.argmin(np.abs(along)))
-        if abs(along[i]) <= 1.0 and abs(across[i]) <= reach:
-            return False
-    return True
+        if hi > lo:
+            samples.append(other.points(np.arange(lo, hi + _OTHER_STEP, _OTHER_STEP)))
+    if not samples:
+        return True
+    uv_o, _, _ = view.project(np.concatenate(samples))
+    owner = np.concatenate([np.full(len(p), k + 1) for k, p in enumerate(samples)])
+    ok = np.isfinite(uv_o).all(axis=1)
+    places = np.r_[uv[:1], uv_o[ok]]
+    # The other lines run nearly parallel where they come near: this line's normal serves.
+    normal = np.tile([-tangent[1], tangent[0]], (len(places), 1))
+    _, near = _beside_others(places, normal, np.r_[0, owner[ok]], reach_px, side_offset_px)
+    return bool(np.isnan(near[0]))
 
 
 def _diagnose(
@@ -274,7 +263,8 @@ def _diagnose(
     wire: FittedWire,
     others: Sequence[FittedWire],
     at: F64,
-    reach: float,
+    reach_px: float,
+    side_offset_px: int,
     crossing_offset: float,
 ) -> tuple[int, int, int, str]:
     """(views, clear views, their positions across the wire, why) at a gap's middle."""
@@ -285,7 +275,7 @@ def _diagnose(
     ]
     if not seeing:
         return 0, 0, 0, UNSEEN
-    clear = [v for v in seeing if _clear_of_others(v, wire, at, others, reach)]
+    clear = [v for v in seeing if _clear_of_others(v, wire, at, others, reach_px, side_offset_px)]
     d = wire.plane_direction_xy
     normal = np.array([d[1], -d[0]])
     centres = np.array([v.center_in_world for v in clear]).reshape(-1, 3)
@@ -319,10 +309,9 @@ def measured_coverage(
     ``crossing_offset``: views closer across the wire than this times their height above
     it are at one position; ``from_pairs`` (N,): the points the pairs measured (the others
     traced in every view; None: no comparison)."""
-    reach = _response_reach(reach_px, side_offset_px)
     out = []
     for k, wire in enumerate(wires):
-        s_pts = wire.plane_coords(pts_in_world[wire.point_indices])[0]
+        s_pts, across, dz = wire.plane_coords(pts_in_world[wire.point_indices])
         share, runs = _unmeasured_runs(wire, s_pts, radius, step)
         gaps = []
         for a, b in runs:
@@ -333,7 +322,7 @@ def measured_coverage(
                 w for j, w in enumerate(wires) if j != k and not _passes_through(w, at, 2 * radius)
             ]
             views, clear, positions, why = _diagnose(
-                scene, wire, others, at, reach, crossing_offset
+                scene, wire, others, at, reach_px, side_offset_px, crossing_offset
             )
             gaps.append(
                 MeasurementGap(
@@ -347,7 +336,7 @@ def measured_coverage(
                 )
             )
         offset, compared = (
-            _pairs_vs_traced(wire, pts_in_world, from_pairs)
+            _pairs_vs_traced(s_pts, across, dz, from_pairs[wire.point_indices])
             if from_pairs is not None
             else (None, 0.0)
         )
