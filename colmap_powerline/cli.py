@@ -260,6 +260,7 @@ def _cmd_fill(args: argparse.Namespace) -> int:
         include_measured=args.include_measured,
         drop_stray=args.drop_stray,
         las=args.las,
+        dense_frame=args.dense_frame,
     )
     dropped = f", {r.num_dropped} stray points dropped" if args.drop_stray else ""
     las = f" and {r.las_path}" if r.las_path else ""
@@ -401,6 +402,13 @@ def build_parser() -> argparse.ArgumentParser:
         help="drop dense points in a 1 m halo around the wires but not on them (reported)",
     )
     fl.add_argument("--las", action="store_true", help="also write LAS 1.4 beside the PLY")
+    fl.add_argument(
+        "--dense_frame",
+        choices=("model", "wires"),
+        default="model",
+        help="the dense cloud's frame: the COLMAP model's (converted to the wires' CRS when "
+        "they were written with --output_crs) or already the wires' own",
+    )
     fl.set_defaults(func=_cmd_fill)
 
     syn = sub.add_parser("synthetic", help="render a synthetic span with known wires")

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import json
 import logging
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -27,6 +27,7 @@ from scipy.spatial import cKDTree
 
 from .errors import InputError
 from .export import ply_header, read_point_cloud, write_atomic
+from .georef import crs_converter, frame_wkt
 from .las import CONDUCTOR, GROUND, UNCLASSIFIED, WIRE_CLASS, write_las
 from .scene import GroundModel
 
@@ -163,6 +164,10 @@ class WireSet:
     measured_id: npt.NDArray[np.int32]
     measured_class: npt.NDArray[np.uint8]
     crs: str
+    # The model frame → ``crs`` conversion the wires were written with; None when they
+    # are in the model frame.
+    from_model: Callable[[F64], F64] | None = None
+    wkt: str | None = None  # the CRS of their coordinates, when geographic (for LAS)
 
 
 def load_wires(wires_path: Path | str) -> WireSet:
@@ -186,6 +191,21 @@ def load_wires(wires_path: Path | str) -> WireSet:
         if labels is not None:
             on_wire = labels >= 0
             measured, measured_id = pts[on_wire], labels[on_wire].astype(np.int32)
+    crs = str(doc.get("crs", "model frame"))
+    from_model, wkt = None, None
+    origin = _origin(doc)
+    if crs != "model frame":
+        try:
+            output_crs = str(doc["options"]["output_crs"])
+            if origin is None:
+                raise ValueError
+            from_model = crs_converter(origin, output_crs)[0]
+            wkt = frame_wkt(origin, output_crs)
+        except (KeyError, TypeError, ValueError):
+            raise InputError(
+                f"{wires_path}: written in {crs} without the georeference it came from "
+                "(georeference.origin_wgs84, options.output_crs)"
+            ) from None
     return WireSet(
         fitted=np.concatenate(polys) if polys else np.zeros((0, 3)),
         fitted_id=ids,
@@ -193,8 +213,37 @@ def load_wires(wires_path: Path | str) -> WireSet:
         measured=measured,
         measured_id=measured_id,
         measured_class=np.array([cls_of.get(int(i), CONDUCTOR) for i in measured_id], np.uint8),
-        crs=str(doc.get("crs", "model frame")),
+        crs=crs,
+        from_model=from_model,
+        wkt=wkt if wkt is not None or origin is None else frame_wkt(origin, None),
     )
+
+
+def _origin(doc: dict) -> tuple[float, float, float] | None:
+    """The WGS84 origin of the model frame a ``wires.json`` records, if any."""
+    try:
+        lat, lon, alt = (float(v) for v in doc["georeference"]["origin_wgs84"])
+    except (KeyError, TypeError, ValueError):
+        return None
+    return lat, lon, alt
+
+
+def _check_overlap(
+    dense_path: Path | str, wires_path: Path | str, wires: WireSet, lo: F64, hi: F64
+) -> None:
+    """Refuse a cloud and wires that are not in one frame: most of the wires must lie over
+    the cloud in plan (a wire may run past a cloud's edge)."""
+    if not len(wires.fitted) or not np.all(np.isfinite(lo)):
+        return
+    margin = 0.05 * float(np.max(hi - lo)) + 1.0
+    xy = wires.fitted[:, :2]
+    inside = np.all((xy >= lo - margin) & (xy <= hi + margin), axis=1)
+    if inside.mean() < 0.5:
+        raise InputError(
+            f"{dense_path}: the wires of {wires_path} ({wires.crs}) lie outside this cloud "
+            f"(x {lo[0]:.1f}..{hi[0]:.1f}, y {lo[1]:.1f}..{hi[1]:.1f} in that frame): "
+            "not the same frame"
+        )
 
 
 @dataclass
@@ -246,12 +295,24 @@ def fill(
     crs_wkt: str | None = None,
     chunk: int = 1_000_000,
     ground: GroundModel | None = None,
+    dense_frame: str = "model",
 ) -> FillResult:
     """Merge the wires into a dense cloud; write ``output_path`` (PLY) and, with ``las``,
     the same points as LAS beside it (``.las``). ``ground``: the cloud's
-    :func:`dense_ground` when the caller has it already (it is one pass over the cloud)."""
+    :func:`dense_ground` when the caller has it already (it is one pass over the cloud),
+    in the cloud's own frame.
+
+    ``dense_frame``: the frame of the cloud's points. ``"model"`` (COLMAP's fused.ply: the
+    model the wires came from): when the wires were written in a projected CRS
+    (``wires.json``'s ``crs``), the cloud is converted to it the same way, so the merged
+    cloud is all in that CRS. ``"wires"``: the cloud is in the wires' frame already (a
+    georeferenced cloud from other software in the same CRS)."""
+    if dense_frame not in ("model", "wires"):
+        raise InputError(f"dense frame {dense_frame!r}: 'model' or 'wires'")
     ply = open_ply(dense_path)
     wires = load_wires(wires_path)
+    dense_to_crs = wires.from_model if dense_frame == "model" else None
+    to_wires: Callable[[F64], F64] = (lambda xyz: xyz) if dense_to_crs is None else dense_to_crs
     output_path = Path(output_path)
     if output_path.suffix.lower() != ".ply":
         raise InputError(f"{output_path}: the merged cloud is written as PLY (name it .ply)")
@@ -266,6 +327,9 @@ def fill(
     )
     if ground is None:
         ground = dense_ground(ply, ground_cell_m, chunk)
+    if dense_to_crs is not None:
+        cells = dense_to_crs(np.c_[ground.cells_xy, ground.cells_z])
+        ground = GroundModel(cells[:, :2], cells[:, 2], ground.cell_size)
     ground_tree = cKDTree(ground.cells_xy)
     wire_tree = cKDTree(wires.fitted) if len(wires.fitted) else None
     wire_tree_xy = cKDTree(wires.fitted[:, :2]) if len(wires.fitted) else None
@@ -289,13 +353,17 @@ def fill(
     # cloud's minimum corner for the LAS offset); the writing passes only read.
     keeps, classes = [], []
     lo = wire_pts.min(axis=0) if len(wire_pts) else np.full(3, np.inf)
+    dense_lo, dense_hi = np.full(2, np.inf), np.full(2, -np.inf)
     for c in ply.chunks(chunk):
-        xyz = _xyz(c)
+        xyz = to_wires(_xyz(c))
         keep, cls = classify(xyz)
         keeps.append(keep)
         classes.append(cls)
         if len(xyz):
             lo = np.minimum(lo, xyz.min(axis=0))
+            dense_lo = np.minimum(dense_lo, xyz[:, :2].min(axis=0))
+            dense_hi = np.maximum(dense_hi, xyz[:, :2].max(axis=0))
+    _check_overlap(dense_path, wires_path, wires, dense_lo, dense_hi)
     keep_all = np.concatenate(keeps) if keeps else np.zeros(0, bool)
     cls_all = np.concatenate(classes) if classes else np.zeros(0, np.uint8)
     n_keep = int(keep_all.sum())
@@ -309,7 +377,12 @@ def fill(
             rgb = _rgb(c)
             if rgb is None:
                 rgb = np.full((len(c), 3), 160, np.uint8)
-            yield _xyz(c)[keep], cls[keep], np.full(int(keep.sum()), -1, np.int32), rgb[keep]
+            yield (
+                to_wires(_xyz(c))[keep],
+                cls[keep],
+                np.full(int(keep.sum()), -1, np.int32),
+                rgb[keep],
+            )
         colors = np.where(wire_cls[:, None] == CONDUCTOR, [255, 40, 40], [40, 40, 255])
         yield wire_pts, wire_cls, wire_id, colors.astype(np.uint8)
 
@@ -335,7 +408,8 @@ def fill(
     write_atomic(output_path, write_ply)
     las_path = None
     if las:
-        las_path = write_las(output_path.with_suffix(".las"), chunks_out(), lo, crs_wkt)
+        wkt = crs_wkt if crs_wkt is not None else wires.wkt
+        las_path = write_las(output_path.with_suffix(".las"), chunks_out(), lo, wkt)
     result = FillResult(
         output_path, las_path, ply.count, ply.count - n_keep, n_ground, len(wire_pts)
     )

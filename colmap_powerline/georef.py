@@ -315,13 +315,18 @@ def crs_wkt(georef: Georeference | None, output_crs: str | None) -> str | None:
     1 km of the origin (heights stay ENU heights, within 1 cm of ellipsoidal heights
     inside 350 m of it).
     """
-    import pyproj
-
     if georef is None or georef.origin_wgs84 is None:
         return None
-    lat, lon, alt = georef.origin_wgs84
+    return frame_wkt(georef.origin_wgs84, output_crs)
+
+
+def frame_wkt(origin: tuple[float, float, float], output_crs: str | None) -> str:
+    """:func:`crs_wkt` for the local ENU frame at ``origin`` (lat, lon, alt)."""
+    import pyproj
+
+    lat, lon, _ = origin
     if output_crs:
-        return _projected_crs(output_crs, georef.origin_wgs84).to_wkt()
+        return _projected_crs(output_crs, origin).to_wkt()
     local = (
         f"+proj=tmerc +lat_0={lat} +lon_0={lon} +k=1 +x_0=0 +y_0=0 +ellps=WGS84 +units=m +no_defs"
     )

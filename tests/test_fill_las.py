@@ -190,3 +190,45 @@ def test_fill_errors_are_one_line(tmp_path, wires_json, capsys):
     )  # fmt: skip
     err = capsys.readouterr().err
     assert code == 2 and "none.ply: dense cloud does not exist" in err and err.count("\n") == 1
+
+
+def test_fill_with_an_output_crs_puts_the_dense_cloud_in_it(tmp_path):
+    """Wires written in UTM (--output_crs) and a fused.ply in the model frame: the merged
+    cloud is all in UTM (the bug: the cloud stayed in the model frame, stamped UTM)."""
+    from colmap_powerline.georef import crs_converter
+
+    origin = (42.9, -76.8, 150.0)  # the model frame: ENU metres at this WGS84 point
+    to_utm, name = crs_converter(origin, "utm")
+    w = _wire(0, 0.0, 12.0)
+    out = tmp_path / "wires"
+    export_results(
+        out,
+        wires=[w],
+        points=w.polyline(0.5),
+        labels=np.zeros(len(w.polyline(0.5)), np.int64),
+        primitives=None,
+        metadata={
+            "georeference": {"origin_wgs84": list(origin)},
+            "options": {"output_crs": "utm"},
+        },
+        to_crs=(to_utm, name),
+        measures=[measure_wire(w, _ground())],
+    )
+    dense = tmp_path / "fused.ply"
+    _fused_ply(dense, 20_000)
+    result = fill(dense, out / "wires.json", tmp_path / "m.ply", drop_stray=True, las=True)
+    # The halo around the wire is found (so cloud and wires met in one frame) and dropped.
+    assert result.num_dropped == 2000
+    xyz = o3d.t.io.read_point_cloud(str(tmp_path / "m.ply")).point.positions.numpy()
+    src = o3d.t.io.read_point_cloud(str(dense)).point.positions.numpy()
+    ground = np.abs(src[:, 2]) < 0.2
+    assert np.allclose(
+        np.sort(xyz[:, 0])[:100], np.sort(to_utm(src[ground])[:, 0])[:100], atol=1e-3
+    )
+    assert xyz[:, 0].min() > 300_000 and xyz[:, 1].min() > 4_700_000  # UTM 18N metres
+    las = laspy.read(result.las_path)
+    assert "UTM zone 18N" in las.header.parse_crs().name
+    # A cloud said to be in the wires' frame that is not: refused, nothing written.
+    with pytest.raises(InputError, match="lie outside this cloud.*not the same frame"):
+        fill(dense, out / "wires.json", tmp_path / "x.ply", dense_frame="wires")
+    assert not (tmp_path / "x.ply").exists()
