@@ -23,6 +23,7 @@ from scipy.spatial import cKDTree
 
 from .coverage import WireCoverage
 from .scene import GroundModel
+from .spans import SPAN_COLUMNS, WireSpan
 from .support import WireSupport
 from .wires import FittedWire
 
@@ -209,6 +210,7 @@ def measures_csv(
     measures: Sequence[WireMeasures],
     supports: Sequence[WireSupport] | None = None,
     coverage: Sequence[WireCoverage] | None = None,
+    placement: Sequence[WireSpan] | None = None,
 ) -> str:
     """One row per wire (the columns of :data:`CSV_COLUMNS`, then with ``supports`` those of
     :data:`SUPPORT_COLUMNS`, with ``coverage`` those of :data:`COVERAGE_COLUMNS`: the gaps
@@ -221,6 +223,7 @@ def measures_csv(
         CSV_COLUMNS
         + (SUPPORT_COLUMNS if supports is not None else ())
         + (COVERAGE_COLUMNS if coverage is not None else ())
+        + (SPAN_COLUMNS if placement is not None else ())
     )
     for k, m in enumerate(measures):
         row: list[Any] = [m.wire_id, m.kind]
@@ -255,5 +258,10 @@ def measures_csv(
             row += [f"{cov.measured_share:.3f}", len(cov.gaps), f"{cov.longest_gap_m:.3f}"]
             row.append(f"{sum(g.length_m for g in cov.gaps if g.flight_limited):.3f}")
             row.append("" if cov.disagreement_m is None else f"{cov.disagreement_m:.3f}")
+        if placement is not None:
+            pl = placement[k]
+            row += [pl.line, pl.span]
+            row += ["" if sid is None else sid for sid in pl.supports]
+            row.append(pl.conductor)
         writer.writerow(row)
     return buf.getvalue()

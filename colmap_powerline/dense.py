@@ -10,11 +10,14 @@ writes PLY and, with ``las``, LAS 1.4 with ASPRS classes.
 
 Classes: 1 unclassified, 2 ground (dense points within ``ground_tolerance_m`` of the ground
 surface, estimated from the dense cloud's own lowest points per cell), 13 shield wire,
-14 conductor.
+14 conductor, 15 tower (dense points above the ground within a support's reach of its
+centre, its cross-arms, plus ``tower_margin_m``, and up to its top plus that margin; the
+supports ``reconstruct`` found, from ``wires.json``).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import logging
 from collections.abc import Callable, Iterator
@@ -28,7 +31,7 @@ from scipy.spatial import cKDTree
 from .errors import InputError
 from .export import ply_header, read_point_cloud, write_atomic
 from .georef import crs_converter, frame_wkt
-from .las import CONDUCTOR, GROUND, UNCLASSIFIED, WIRE_CLASS, write_las
+from .las import CONDUCTOR, GROUND, TOWER, UNCLASSIFIED, WIRE_CLASS, write_las
 from .scene import GroundModel
 
 logger = logging.getLogger(__name__)
@@ -168,6 +171,8 @@ class WireSet:
     # are in the model frame.
     from_model: Callable[[F64], F64] | None = None
     wkt: str | None = None  # the CRS of their coordinates, when geographic (for LAS)
+    # The supports (towers, poles): (K, 5) x, y, ground z, top z, reach in plan.
+    supports: F64 = dataclasses.field(default_factory=lambda: np.zeros((0, 5)))
 
 
 def load_wires(wires_path: Path | str) -> WireSet:
@@ -177,6 +182,10 @@ def load_wires(wires_path: Path | str) -> WireSet:
         doc = json.loads(wires_path.read_text())
         wires = doc["wires"]
         polys = [np.asarray(w["polyline"], np.float64).reshape(-1, 3) for w in wires]
+        supports: F64 = np.array(
+            [[*t["position"], t["top_z"], t.get("reach_m", 0.0)] for t in doc.get("supports", [])],
+            np.float64,
+        ).reshape(-1, 5)
     except FileNotFoundError:
         raise InputError(f"{wires_path}: wires file does not exist") from None
     except (ValueError, KeyError, TypeError) as e:
@@ -214,6 +223,7 @@ def load_wires(wires_path: Path | str) -> WireSet:
         measured_id=measured_id,
         measured_class=np.array([cls_of.get(int(i), CONDUCTOR) for i in measured_id], np.uint8),
         crs=crs,
+        supports=supports,
         from_model=from_model,
         wkt=wkt if wkt is not None or origin is None else frame_wkt(origin, None),
     )
@@ -254,6 +264,7 @@ class FillResult:
     num_dropped: int
     num_ground: int
     num_wire_points: int
+    num_tower: int = 0  # dense points on the supports (class 15)
 
 
 def dense_ground(ply: PlyVertices, cell: float = 1.0, chunk: int = 1_000_000) -> GroundModel:
@@ -291,6 +302,7 @@ def fill(
     wire_tolerance_m: float = 0.3,
     ground_cell_m: float = 1.0,
     ground_tolerance_m: float = 0.3,
+    tower_margin_m: float = 1.5,
     las: bool = False,
     crs_wkt: str | None = None,
     chunk: int = 1_000_000,
@@ -331,6 +343,7 @@ def fill(
         cells = dense_to_crs(np.c_[ground.cells_xy, ground.cells_z])
         ground = GroundModel(cells[:, :2], cells[:, 2], ground.cell_size)
     ground_tree = cKDTree(ground.cells_xy)
+    support_tree = cKDTree(wires.supports[:, :2]) if len(wires.supports) else None
     wire_tree = cKDTree(wires.fitted) if len(wires.fitted) else None
     wire_tree_xy = cKDTree(wires.fitted[:, :2]) if len(wires.fitted) else None
 
@@ -338,6 +351,17 @@ def fill(
         _, gi = ground_tree.query(xyz[:, :2])
         near_ground = np.abs(xyz[:, 2] - ground.cells_z[gi]) <= ground_tolerance_m
         cls = np.where(near_ground, GROUND, UNCLASSIFIED).astype(np.uint8)
+        if support_tree is not None:
+            # Above the ground within a support's reach (its cross-arms) and up to its top
+            # (+ tower_margin_m): the tower or pole.
+            sup = wires.supports
+            d, si = support_tree.query(xyz[:, :2])
+            tower = (
+                ~near_ground
+                & (d <= sup[si, 4] + tower_margin_m)
+                & (xyz[:, 2] <= sup[si, 3] + tower_margin_m)
+            )
+            cls[tower] = TOWER
         keep = np.ones(len(xyz), bool)
         if drop_stray and wire_tree is not None and wire_tree_xy is not None:
             d_xy, wi = wire_tree_xy.query(xyz[:, :2], distance_upper_bound=halo_m)
@@ -368,6 +392,7 @@ def fill(
     cls_all = np.concatenate(classes) if classes else np.zeros(0, np.uint8)
     n_keep = int(keep_all.sum())
     n_ground = int(((cls_all == GROUND) & keep_all).sum())
+    n_tower = int(((cls_all == TOWER) & keep_all).sum())
 
     def chunks_out() -> Iterator[tuple[F64, npt.NDArray, npt.NDArray, npt.NDArray[np.uint8]]]:
         k = 0
@@ -411,12 +436,14 @@ def fill(
         wkt = crs_wkt if crs_wkt is not None else wires.wkt
         las_path = write_las(output_path.with_suffix(".las"), chunks_out(), lo, wkt)
     result = FillResult(
-        output_path, las_path, ply.count, ply.count - n_keep, n_ground, len(wire_pts)
+        output_path, las_path, ply.count, ply.count - n_keep, n_ground, len(wire_pts), n_tower
     )
     logger.info(
-        "fill: %d dense points (%d ground%s) + %d wire points → %s%s",
+        "fill: %d dense points (%d ground, %d on %d supports%s) + %d wire points → %s%s",
         ply.count,
         n_ground,
+        n_tower,
+        len(wires.supports),
         f", {result.num_dropped} stray points dropped" if drop_stray else "",
         len(wire_pts),
         output_path,

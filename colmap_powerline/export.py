@@ -25,6 +25,7 @@ import open3d as o3d
 
 from .clearance import WireMeasures, measures_csv
 from .coverage import WireCoverage
+from .spans import LineSupport, WireSpan, supports_csv
 from .support import WireSupport
 from .wires import FittedWire
 
@@ -182,6 +183,8 @@ def export_results(
     measures: Sequence[WireMeasures] | None = None,
     supports: Sequence[WireSupport] | None = None,
     coverage: Sequence[WireCoverage] | None = None,
+    placement: Sequence[WireSpan] | None = None,
+    line_supports: Sequence[LineSupport] | None = None,
 ) -> dict[str, Path]:
     """Write the output contract of DESIGN.md into ``output_path``; returns the files.
 
@@ -206,6 +209,10 @@ def export_results(
     if coverage is not None:
         for d, cov in zip(wire_docs, coverage, strict=True):
             d["coverage"] = cov.to_json()
+    if placement is None:  # one line, one span, no support found
+        placement = [WireSpan(1, 1, (None, None), w.wire_id) for w in wires]
+    for d, pl in zip(wire_docs, placement, strict=True):
+        d.update(pl.to_json())
     if to_crs is not None:
         for d in wire_docs:
             for gap in d.get("coverage", {}).get("gaps", []):
@@ -217,13 +224,21 @@ def export_results(
         **metadata,
         "crs": to_crs[1] if to_crs is not None else "model frame",
         "catenary_frame": "model frame",
+        "supports": [
+            sup.to_json(convert if to_crs is not None else None) for sup in line_supports or []
+        ],
         "wires": wire_docs,
     }
     text = json.dumps(_finite(doc), allow_nan=False)
     out["wires.json"] = write_atomic(output_path / "wires.json", lambda p: p.write_text(text))
     if measures is not None:
-        table = measures_csv(measures, supports, coverage)
+        table = measures_csv(measures, supports, coverage, placement)
         out["wires.csv"] = write_atomic(output_path / "wires.csv", lambda p: p.write_text(table))
+    if line_supports is not None:
+        rows = supports_csv(line_supports, convert if to_crs is not None else None)
+        out["supports.csv"] = write_atomic(
+            output_path / "supports.csv", lambda p: p.write_text(rows)
+        )
     dense = [w.polyline(sample_step) for w in wires]
     ids = (
         np.concatenate([np.full(len(d), w.wire_id) for d, w in zip(dense, wires, strict=True)])

@@ -35,6 +35,10 @@ class PairsOptions:
     candidate_tolerance_deg: float = 2.5  # image directions this close form one candidate
     # (a road and the line beside it may differ by only a few degrees)
     max_candidates: int = 5  # candidate directions found in the images
+    line_tolerance_deg: float = 5.0  # wires measured this far from a found line's direction
+    # are another line (or leg of a line turning at an angle tower): the wires' planes give
+    # their direction to under 1°, and a turn of less keeps the next leg in the corridor
+    # (5° over 170 m is 15 m, the corridor's margin)
     probe_candidates: int = 5  # of those, the strongest this many are probed in 3D (wires
     # are thin: their image lines are often weaker than a road's or a field's)
     probe_pairs: int = 4  # pairs triangulated and verified to probe a direction
@@ -68,6 +72,8 @@ class PairsOptions:
             raise ValueError(f"{self.num_direction_images=} but expected ≥ 1")
         if self.probe_views < 0:
             raise ValueError(f"{self.probe_views=} but expected ≥ 0")
+        if not 0.0 < self.line_tolerance_deg < 90.0:
+            raise ValueError(f"{self.line_tolerance_deg=} but expected in (0, 90)")
         if self.probe_bands not in (1, 2):
             raise ValueError(f"{self.probe_bands=} but expected 1 (densest band) or 2 (and all)")
 

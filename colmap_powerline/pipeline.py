@@ -44,6 +44,7 @@ from .rectify import RectifiedPair, RectifyOptions, rectify_pair
 from .report import write_report
 from .scene import Scene, SceneImage, load_scene, read_image, resolve_inputs
 from .sfm import SfmOptions, run_sfm
+from .spans import LineSupport, SpanOptions, WireSpan, find_spans
 from .support import (
     SupportOptions,
     WireSupport,
@@ -109,6 +110,7 @@ class ReconstructionOptions:
     wires: WiresOptions = field(default_factory=WiresOptions)
     support: SupportOptions = field(default_factory=SupportOptions)
     trace: TraceOptions = field(default_factory=TraceOptions)
+    spans: SpanOptions = field(default_factory=SpanOptions)
     sfm: SfmOptions = field(default_factory=SfmOptions)  # used when no model is given
     skip_bad_images: bool = False  # drop missing/undecodable images with a warning
     min_clearance_m: float | None = None  # flag wire stretches closer to the ground
@@ -139,6 +141,83 @@ class ReconstructionResult:
     outputs: dict[str, Path] = field(default_factory=dict)
     coverage: list[WireCoverage] = field(default_factory=list)  # where each wire was
     # measured, and why not elsewhere
+    placement: list[WireSpan] = field(default_factory=list)  # each wire's line and span
+    line_supports: list[LineSupport] = field(default_factory=list)  # towers and poles
+    corridors: list[WireCorridor] = field(default_factory=list)  # every line's (or leg's)
+
+
+@dataclass(eq=False)
+class CorridorResult:
+    """What one corridor's pairs measured: :func:`reconstruct_corridor`."""
+
+    corridor: WireCorridor
+    pairs: list[ImagePair]
+    primitives: list[Primitives]
+    verified: VerifiedPoints
+    wires: list[FittedWire]
+    supports: list[WireSupport]
+    decoded: list[Path]  # every image file decoded, in order (repeats included)
+    n_candidates: int  # wires hypothesised before the views judged them
+    on_ground: int  # of those, how many lay on the ground
+    legs: list[int] = field(default_factory=list)  # (merged) the corridor of each wire
+    corridors: list[WireCorridor] = field(default_factory=list)  # (merged) every corridor
+
+
+def _add_time(timings: dict[str, float], stage: str, t0: float) -> None:
+    timings[stage] = timings.get(stage, 0.0) + time.perf_counter() - t0
+
+
+def _merged(parts: Sequence[CorridorResult], inlier_distance: float) -> CorridorResult:
+    """The corridors' results as one: their points, pairs and wires side by side, wire ids
+    and point indices kept apart. A wire of a later corridor whose points mostly lie on a
+    wire of an earlier one (where two legs of a line overlap at an angle tower, one leg's
+    pairs see the other's wires too) is that wire seen again, and is left out."""
+    first = parts[0]
+    if len(parts) == 1:
+        return dataclasses.replace(first, legs=[0] * len(first.wires), corridors=[first.corridor])
+    wires, supports = list(first.wires), list(first.supports)
+    legs = [0] * len(wires)
+    n_pts, n_pairs = len(first.verified), len(first.pairs)
+    n_prims = int(sum(len(p) for p in first.primitives))
+    next_id = max((w.wire_id for w in wires), default=-1) + 1
+    verified = first.verified
+    for leg, part in enumerate(parts[1:], 1):
+        v = part.verified
+        before = [w.polyline(0.1) for w in wires]
+        tree = cKDTree(np.concatenate(before)) if before else None
+        for w, sup in zip(part.wires, part.supports, strict=True):
+            if tree is not None:
+                d, _ = tree.query(v.pts_in_world[w.point_indices])
+                if np.mean(d <= 2 * inlier_distance) >= 0.5:
+                    logger.info(
+                        "line at %.1f°: wire %d lies on a wire of an earlier line; left out",
+                        part.corridor.azimuth_deg,
+                        w.wire_id,
+                    )
+                    continue
+            wires.append(
+                dataclasses.replace(w, wire_id=next_id, point_indices=w.point_indices + n_pts)
+            )
+            supports.append(sup)
+            legs.append(leg)
+            next_id += 1
+        verified = verified.concatenated(v, n_pairs, n_prims)
+        n_pts += len(v)
+        n_pairs += len(part.pairs)
+        n_prims += int(sum(len(p) for p in part.primitives))
+    return CorridorResult(
+        first.corridor,
+        [p for part in parts for p in part.pairs],
+        [p for part in parts for p in part.primitives],
+        verified,
+        wires,
+        supports,
+        [p for part in parts for p in part.decoded],
+        sum(p.n_candidates for p in parts),
+        sum(p.on_ground for p in parts),
+        legs,
+        [p.corridor for p in parts],
+    )
 
 
 def _direction_deg(uv: npt.NDArray[np.float64]) -> float:
@@ -267,39 +346,62 @@ def _probe(
 
 
 def probe_corridor(scene: Scene, options: ReconstructionOptions) -> WireCorridor:
+    """The main line's corridor: the first of :func:`probe_corridors`."""
+    return probe_corridors(scene, options)[0]
+
+
+def _another_line(probe: _Probe, found: Sequence[_Probe], tolerance_deg: float) -> bool:
+    """Whether a probe measured a line other than those found: wires enough for a line, in
+    a direction of their own (a probe across the found line's wires at another angle
+    measures that line's direction again)."""
+    return probe.num_wires >= MIN_LINE_WIRES and all(
+        abs((probe.azimuth_deg - f.azimuth_deg + 90) % 180 - 90) >= tolerance_deg for f in found
+    )
+
+
+def probe_corridors(scene: Scene, options: ReconstructionOptions) -> list[WireCorridor]:
     """Find where the wires are by measuring them: a few pairs per candidate direction.
 
     Long image lines run along the wires, but also along roads, field rows and shadows. For
     each of the strongest candidate directions, a few pairs crossing it are triangulated and
     verified in the views around them; the direction whose points form the most wire length
-    is the line, and its points give the corridor's band and heights (so that pairs are
+    is the main line, and its points give the corridor's band and heights (so that pairs are
     then chosen where the wires really are, at the heights they really hang).
+
+    A survey may hold more lines, or a line that turns at an angle tower: every other
+    direction whose probe measures a line's wires (two or more) running in a direction of
+    their own is a corridor too, longest first.
     """
     cands = direction_candidates(scene, options.pairs)
     decoded = list(cands.decoded)
     heights = (options.triangulate.min_wire_height, options.triangulate.max_wire_height)
-    best: _Probe | None = None
+    probes: list[_Probe] = []
+
+    def best() -> _Probe | None:
+        return max(probes, key=lambda p: p.length) if probes else None
 
     def probe_all(found: DirectionCandidates, ks: Sequence[int]) -> None:
-        nonlocal best
         for k in ks:
             for prov in provisional_corridors(
                 scene, found, found.azimuths_deg[k], options.pairs, heights
             ):
                 probe, n = _probe(scene, prov, options)
                 decoded.extend(n)
-                if probe is not None and (best is None or probe.length > best.length):
-                    best = probe
+                if probe is not None:
+                    probes.append(probe)
 
     order = list(np.argsort(cands.weights)[::-1][: options.pairs.probe_candidates])
     probe_all(cands, order)
-    if options.pairs.wire_azimuth_deg is None and (best is None or best.num_wires < MIN_LINE_WIRES):
-        # No direction the few images gave has wires (or only one, where a line carries
-        # at least two): an area survey whose line a few of its images see, at an angle
-        # to its strips (shared grid seed 3: 0 of 6 probes; seed 5: one 18 m piece 8 m
-        # above the ground). The wider look's directions compete with the best so far.
-        # Read more images, rank their directions alike at every angle, and probe those
-        # not probed yet (up to twice as many: this is the run's last chance to find it).
+    first = best()
+    if options.pairs.wire_azimuth_deg is None:
+        # A few images show the main line; another line may cross a corner of the survey
+        # that they miss (shared twolines seed 3: the pole line, seen by none of the six).
+        # Read more images, rank their directions alike at every angle, and probe those not
+        # probed yet. When no direction of the first look has a line's wires (or only one
+        # wire, where a line carries at least two: an area survey whose line a few of its
+        # images see, at an angle to its strips; shared grid seed 3: 0 of 6 probes), this
+        # is the run's last chance to find it: up to twice as many.
+        lost = first is None or first.num_wires < MIN_LINE_WIRES
         wide = direction_candidates(scene, options.pairs, wide=True, read=cands.analysed)
         decoded += [p for p in wide.decoded if p not in decoded]
         tol = options.pairs.candidate_tolerance_deg
@@ -308,16 +410,19 @@ def probe_corridor(scene: Scene, options: ReconstructionOptions) -> WireCorridor
             int(k)
             for k in np.argsort(wide.weights)[::-1]
             if all(abs((wide.azimuths_deg[k] - a + 90) % 180 - 90) >= tol for a in probed)
-        ][: WIDE_CANDIDATES * options.pairs.probe_candidates]
+        ][: (WIDE_CANDIDATES if lost else 1) * options.pairs.probe_candidates]
         logger.info(
             "probe: %s; %d more from %d images ranked alike at every angle: %s",
-            "no direction gave wires" if best is None else "the best direction gave one wire",
+            "no direction gave wires"
+            if first is None
+            else ("the best direction gave one wire" if lost else "looking for more lines"),
             len(fresh),
             len(wide.analysed),
             [round(wide.azimuths_deg[k], 1) for k in fresh],
         )
         probe_all(wide, fresh)
-    if best is None:
+    first = best()
+    if first is None:
         azimuth = cands.azimuths_deg[int(np.argmax(cands.weights))]
         logger.warning(
             "no candidate direction gave wires in a probe; using the strongest line direction "
@@ -326,15 +431,30 @@ def probe_corridor(scene: Scene, options: ReconstructionOptions) -> WireCorridor
             azimuth,
         )
         prov = provisional_corridors(scene, cands, azimuth, options.pairs, heights)[0]
-        return dataclasses.replace(prov, decoded=tuple(decoded))
-    return corridor_from_points(
-        scene,
-        best.pts_in_world,
-        best.azimuth_deg if options.pairs.wire_azimuth_deg is None else best.corridor.azimuth_deg,
-        options.pairs,
-        best.corridor,
-        tuple(decoded),
-    )
+        return [dataclasses.replace(prov, decoded=tuple(decoded))]
+    lines = [first]
+    if options.pairs.wire_azimuth_deg is None:
+        for probe in sorted(probes, key=lambda p: -p.length):
+            if _another_line(probe, lines, options.pairs.line_tolerance_deg):
+                lines.append(probe)
+    corridors = [
+        corridor_from_points(
+            scene,
+            p.pts_in_world,
+            p.azimuth_deg if options.pairs.wire_azimuth_deg is None else p.corridor.azimuth_deg,
+            options.pairs,
+            p.corridor,
+            tuple(decoded) if k == 0 else (),
+        )
+        for k, p in enumerate(lines)
+    ]
+    if len(corridors) > 1:
+        logger.info(
+            "%d lines (or legs of a line) in the survey, at %s°",
+            len(corridors),
+            ", ".join(f"{c.azimuth_deg:.1f}" for c in corridors),
+        )
+    return corridors
 
 
 def primitives_for_pairs(
@@ -456,17 +576,188 @@ def reconstruct(
     timings["scene"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    corridor = probe_corridor(scene, options)
-    pairs = select_pairs(scene, corridor, options.pairs, options.verify.crossing_offset)
+    corridors = probe_corridors(scene, options)
     timings["pairs"] = time.perf_counter() - t0
-    decoded = list(corridor.decoded)
+    decoded = [p for c in corridors for p in c.decoded]
+    parts = []
+    for k, c in enumerate(corridors):
+        try:
+            parts.append(reconstruct_corridor(scene, c, options, timings))
+        except InputError as e:
+            if k == 0:
+                raise
+            logger.warning("line at %.1f°: %s", c.azimuth_deg, e)
+    part = _merged(parts, options.wires.inlier_distance)
+    corridor, pairs, primitives, verified = (
+        part.corridor,
+        part.pairs,
+        part.primitives,
+        part.verified,
+    )
+    wires, supports, on_ground, n_candidates = (
+        part.wires,
+        part.supports,
+        part.on_ground,
+        part.n_candidates,
+    )
+    decoded += part.decoded
+    t0 = time.perf_counter()
+    spans = find_spans(
+        scene.images,
+        scene.ground_height,
+        wires,
+        part.legs,
+        part.corridors,
+        verified.pts_in_world,
+        options.spans,
+        options.wires,
+    )
+    wires, supports = spans.wires, [supports[k] for k in spans.source]
+    timings["spans"] = time.perf_counter() - t0
+    labels = np.full(len(verified), -1, np.int64)
+    for w in wires:
+        labels[w.point_indices] = w.wire_id
+    logger.info(
+        "wires: %d wires from %d verified points (%d assigned)",
+        len(wires),
+        len(verified),
+        int((labels >= 0).sum()),
+    )
+    if not wires:
+        why = []
+        if on_ground:
+            why.append(f"{on_ground} lay on the ground (road edges, field rows, shadows)")
+        if n_candidates > on_ground:
+            why.append(f"the views confirmed none of the other {n_candidates - on_ground}")
+        logger.warning(
+            "no wire found: %d wires were hypothesised from %d verified points%s. If the "
+            "images show wires, they are too faint against this ground for the line detector "
+            "(a wire of the ground's colour), or too few images see them from positions "
+            "across them; the outputs hold no wire",
+            n_candidates,
+            len(verified),
+            "; " + " and ".join(why) if why else "",
+        )
+
+    t0 = time.perf_counter()
+    coverage = measured_coverage(
+        scene,
+        wires,
+        verified.pts_in_world,
+        options.wires.inlier_distance,
+        options.trace.reach_px,
+        options.detect.side_offset_px,
+        options.verify.crossing_offset,
+        verified.pair_index >= 0,
+    )
+    log_coverage(wires, coverage, options.wires.inlier_distance)
+    timings["coverage"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    ground, source = scene.ground, "sparse points"
+    if options.dense_path is not None:
+        ground, source = dense_ground(open_ply(options.dense_path)), "dense cloud"
+    measures = [measure_wire(w, ground, source, options.min_clearance_m) for w in wires]
+    assign_kinds(measures)
+    timings["clearance"] = time.perf_counter() - t0
+    result = ReconstructionResult(
+        scene,
+        corridor,
+        pairs,
+        primitives,
+        verified,
+        wires,
+        labels,
+        timings,
+        decoded,
+        measures,
+        supports,
+        georef,
+        coverage=coverage,
+        placement=spans.placement,
+        line_supports=spans.supports,
+        corridors=part.corridors,
+    )
+    if options.min_clearance_m is not None:
+        flagged = [m for m in measures if m.flagged]
+        log = logger.warning if flagged else logger.info
+        log(
+            "clearance: %d of %d wires come closer than %.2f to the ground (%d stretches)",
+            len(flagged),
+            len(measures),
+            options.min_clearance_m,
+            sum(len(m.flagged) for m in flagged),
+        )
+    if output_path is not None:
+        t0 = time.perf_counter()
+        crs = _crs_function(georef, options.output_crs)
+        result.outputs = export_results(
+            Path(output_path),
+            wires=wires,
+            points=verified.pts_in_world,
+            labels=labels,
+            primitives=np.concatenate([p.pts_in_world for p in primitives])
+            if options.debug
+            else None,
+            metadata=_metadata(result, image_path, input_path, options),
+            ground_height=scene.ground_height,
+            to_crs=crs,
+            measures=measures,
+            supports=supports,
+            coverage=coverage,
+            placement=spans.placement,
+            line_supports=spans.supports,
+        )
+        wkt = crs_wkt(georef, options.output_crs)
+        if options.las:
+            result.outputs["wires.las"] = _write_wires_las(
+                Path(output_path), result, crs[0] if crs else None, wkt
+            )
+        if options.dense_path is not None:
+            merged = fill(
+                options.dense_path,
+                result.outputs["wires.json"],
+                Path(output_path) / "merged.ply",
+                las=options.las,
+                crs_wkt=wkt,
+                ground=ground,
+            )
+            result.outputs["merged.ply"] = merged.output_path
+            if merged.las_path:
+                result.outputs["merged.las"] = merged.las_path
+        timings["export"] = time.perf_counter() - t0
+        if options.report:
+            t0 = time.perf_counter()
+            result.outputs["report"] = write_report(
+                result, Path(output_path), options, georef is not None, ground
+            )
+            timings["report"] = time.perf_counter() - t0
+    return result
+
+
+def reconstruct_corridor(
+    scene: Scene,
+    corridor: WireCorridor,
+    options: ReconstructionOptions,
+    timings: dict[str, float] | None = None,
+) -> CorridorResult:
+    """Every wire of one corridor (a line, or a straight leg of one): pairs crossing it,
+    their primitives verified in the other views, wires split, fitted, judged, traced.
+
+    ``timings`` (stage → seconds) is added to. Raises :class:`InputError` when no pair
+    gives a primitive.
+    """
+    timings = {} if timings is None else timings
+    t0 = time.perf_counter()
+    pairs = select_pairs(scene, corridor, options.pairs, options.verify.crossing_offset)
+    _add_time(timings, "pairs", t0)
+    decoded: list[Path] = []
 
     t0 = time.perf_counter()
     primitives, n = primitives_for_pairs(scene, pairs, corridor, options)
     decoded += n
-    timings["rectify_detect_triangulate"] = time.perf_counter() - t0
+    _add_time(timings, "rectify_detect_triangulate", t0)
     if sum(len(p) for p in primitives) == 0:
-        raise InputError(f"{image_path}: no wire was found in the chosen pairs")
+        raise InputError(f"{scene.image_path}: no wire was found in the chosen pairs")
 
     t0 = time.perf_counter()
 
@@ -481,14 +772,14 @@ def reconstruct(
         options.triangulate.min_wire_height,
     )
     decoded += verified.decoded
-    timings["verify"] = time.perf_counter() - t0
+    _add_time(timings, "verify", t0)
     verified = _settled_by_the_views(
         verified, options.verify.min_posterior, options.wires.inlier_distance
     )
 
     t0 = time.perf_counter()
     candidates = split_wires(verified.pts_in_world, corridor.azimuth_deg, options.wires)
-    timings["wires"] = time.perf_counter() - t0
+    _add_time(timings, "wires", t0)
     t0 = time.perf_counter()
     index_of = {view.name: k for k, view in enumerate(scene.images)}
     pair_views = np.array(
@@ -650,121 +941,18 @@ def reconstruct(
             keep = [k for k in range(len(wires)) if k not in swapped]
             wires, supports = _kept(wires, supports, keep)
         wires, supports = _without_unconfirmed(wires, supports)
-        timings["trace"] = time.perf_counter() - t1
-    labels = np.full(len(verified), -1, np.int64)
-    for w in wires:
-        labels[w.point_indices] = w.wire_id
-    timings["support"] = time.perf_counter() - t0
-    logger.info(
-        "wires: %d wires from %d verified points (%d assigned)",
-        len(wires),
-        len(verified),
-        int((labels >= 0).sum()),
-    )
-    if not wires:
-        why = []
-        if on_ground:
-            why.append(f"{on_ground} lay on the ground (road edges, field rows, shadows)")
-        if n_candidates > on_ground:
-            why.append(f"the views confirmed none of the other {n_candidates - on_ground}")
-        logger.warning(
-            "no wire found: %d wires were hypothesised from %d verified points%s. If the "
-            "images show wires, they are too faint against this ground for the line detector "
-            "(a wire of the ground's colour), or too few images see them from positions "
-            "across them; the outputs hold no wire",
-            n_candidates,
-            len(verified),
-            "; " + " and ".join(why) if why else "",
+        _add_time(timings, "trace", t1)
+        wires, supports = _above_the_floor(
+            wires,
+            supports,
+            scene,
+            options.triangulate.min_wire_height,
+            options.wires.inlier_distance,
         )
-
-    t0 = time.perf_counter()
-    coverage = measured_coverage(
-        scene,
-        wires,
-        verified.pts_in_world,
-        options.wires.inlier_distance,
-        options.trace.reach_px,
-        options.detect.side_offset_px,
-        options.verify.crossing_offset,
-        verified.pair_index >= 0,
+    _add_time(timings, "support", t0)
+    return CorridorResult(
+        corridor, pairs, primitives, verified, wires, supports, decoded, n_candidates, on_ground
     )
-    log_coverage(wires, coverage, options.wires.inlier_distance)
-    timings["coverage"] = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    ground, source = scene.ground, "sparse points"
-    if options.dense_path is not None:
-        ground, source = dense_ground(open_ply(options.dense_path)), "dense cloud"
-    measures = [measure_wire(w, ground, source, options.min_clearance_m) for w in wires]
-    assign_kinds(measures)
-    timings["clearance"] = time.perf_counter() - t0
-    result = ReconstructionResult(
-        scene,
-        corridor,
-        pairs,
-        primitives,
-        verified,
-        wires,
-        labels,
-        timings,
-        decoded,
-        measures,
-        supports,
-        georef,
-        coverage=coverage,
-    )
-    if options.min_clearance_m is not None:
-        flagged = [m for m in measures if m.flagged]
-        log = logger.warning if flagged else logger.info
-        log(
-            "clearance: %d of %d wires come closer than %.2f to the ground (%d stretches)",
-            len(flagged),
-            len(measures),
-            options.min_clearance_m,
-            sum(len(m.flagged) for m in flagged),
-        )
-    if output_path is not None:
-        t0 = time.perf_counter()
-        crs = _crs_function(georef, options.output_crs)
-        result.outputs = export_results(
-            Path(output_path),
-            wires=wires,
-            points=verified.pts_in_world,
-            labels=labels,
-            primitives=np.concatenate([p.pts_in_world for p in primitives])
-            if options.debug
-            else None,
-            metadata=_metadata(result, image_path, input_path, options),
-            ground_height=scene.ground_height,
-            to_crs=crs,
-            measures=measures,
-            supports=supports,
-            coverage=coverage,
-        )
-        wkt = crs_wkt(georef, options.output_crs)
-        if options.las:
-            result.outputs["wires.las"] = _write_wires_las(
-                Path(output_path), result, crs[0] if crs else None, wkt
-            )
-        if options.dense_path is not None:
-            merged = fill(
-                options.dense_path,
-                result.outputs["wires.json"],
-                Path(output_path) / "merged.ply",
-                las=options.las,
-                crs_wkt=wkt,
-                ground=ground,
-            )
-            result.outputs["merged.ply"] = merged.output_path
-            if merged.las_path:
-                result.outputs["merged.las"] = merged.las_path
-        timings["export"] = time.perf_counter() - t0
-        if options.report:
-            t0 = time.perf_counter()
-            result.outputs["report"] = write_report(
-                result, Path(output_path), options, georef is not None, ground
-            )
-            timings["report"] = time.perf_counter() - t0
-    return result
 
 
 def _without_members(
@@ -1136,6 +1324,36 @@ def _without_unconfirmed(
         else:
             keep.append(k)
     return _kept(wires, supports, keep)
+
+
+def _above_the_floor(
+    wires: list[FittedWire],
+    supports: list[WireSupport],
+    scene: Scene,
+    min_height: float,
+    inlier_distance: float,
+) -> tuple[list[FittedWire], list[WireSupport]]:
+    """The wires without those whose lowest point lies at the floor of the heights
+    searched (``min_height`` above the ground, within ``inlier_distance``): a structure
+    that reaches down to the ground (a hedge's or a tree row's edge, matched by views
+    across it) is cut there by the search, a wire hanging free rarely just touches it
+    (shared cross seed 2: three such 'wires' at 4.7-5.0 above the ground along a tree-lined
+    road, read as a second line)."""
+    kept = []
+    for k, w in enumerate(wires):
+        poly = w.polyline(0.5)
+        low = float(np.min(poly[:, 2] - scene.ground_height(poly[:, :2])))
+        if low <= min_height + inlier_distance:
+            logger.info(
+                "wires: wire %d (%.0f m) comes down to %.2f above the ground, the floor of "
+                "the heights searched: a structure reaching the ground, not a wire; left out",
+                w.wire_id,
+                w.s_range[1] - w.s_range[0],
+                low,
+            )
+            continue
+        kept.append(k)
+    return _kept(wires, supports, kept)
 
 
 def _without_untraced(

@@ -1,6 +1,7 @@
 """``OUT/report/``: figures a person looks at, and an HTML page that links them.
 
-- ``plan.png``: the wires in plan over the ground points, coloured by height.
+- ``plan.png``: the whole survey in plan: the wires over the ground points, coloured by
+  height, and the supports found (towers and poles, by kind, numbered).
 - ``profile_<id>.png``: per wire, its height and the ground below it along the span, the
   clearance, the chord and the sag, and the stretches below ``min_clearance_m`` in red.
 - ``pair_<k>.png``: the left image of each pair, with the wire pixels the detector found
@@ -79,9 +80,25 @@ def _plan(result: ReconstructionResult, units: str, path: Path) -> Path:
         ax.annotate(str(w.wire_id), p[0, :2], fontsize=9, fontweight="bold")
         for f in m.flagged:
             ax.plot(*f.lowest_clearance_point[:2], "rx", ms=10, mew=2)
+    marks = {"suspension": ("s", "suspension"), "angle": ("D", "angle"), "end": ("^", "end")}
+    for kind, (marker, label) in marks.items():
+        sup = [t for t in result.line_supports if t.kind == kind]
+        if sup:
+            xy = np.array([t.position[:2] for t in sup])
+            ax.plot(xy[:, 0], xy[:, 1], marker, ms=11, mfc="none", mec="k", mew=2,
+                    label=f"{label} support")  # fmt: skip
+            for t in sup:
+                ax.annotate(f"S{t.support_id}", t.position[:2], xytext=(8, -12),
+                            textcoords="offset points", fontsize=9)  # fmt: skip
     ax.set_xlim(lo[0], hi[0])
     ax.set_ylim(lo[1], hi[1])
-    _finish_plan(ax, units, f"{len(result.wires)} wires over the sparse ground points (plan view)")
+    lines = len({p.line for p in result.placement}) if result.placement else 1
+    _finish_plan(
+        ax,
+        units,
+        f"{len(result.wires)} wires of {lines} line(s), {len(result.line_supports)} supports "
+        "(plan view)",
+    )
     if result.wires:
         ax.legend(loc="best", fontsize=8, ncol=2)
     return _save(fig, path)
@@ -264,6 +281,36 @@ def _agreement(result: ReconstructionResult, k: int) -> str:
     return f"{result.coverage[k].disagreement_m:.3f}"
 
 
+def _where(result: ReconstructionResult, k: int) -> str:
+    if not result.placement:
+        return ""
+    p = result.placement[k]
+    return f"{p.line} / {p.span} / {p.conductor}"
+
+
+def _supports_table(result: ReconstructionResult, units: str) -> str:
+    """The supports found: where, how high, what kind, and from what."""
+    if not result.line_supports:
+        return "<p>No support found (the wires end where the images end).</p>"
+    rows = "".join(
+        f"<tr><td>S{t.support_id}</td><td>{t.line}</td><td>{t.kind}</td>"
+        f"<td>{t.position[0]:.2f}</td><td>{t.position[1]:.2f}</td>"
+        f"<td>{t.top_z - t.position[2]:.2f}</td><td>{t.turn_deg:.1f}</td>"
+        f"<td>{len(t.wire_ids)}</td><td>{t.found_by}</td></tr>"
+        for t in result.line_supports
+    )
+    return (
+        "<h2>Supports</h2><table><tr><th>support</th><th>line</th><th>kind</th>"
+        f"<th>east ({units})</th><th>north ({units})</th><th>highest attachment above "
+        "ground</th><th>turn (°)</th><th>wires</th><th>found by</th></tr>"
+        f"{rows}</table><p>Found by: <i>kink</i>, a wire measured across the support bends "
+        "there; <i>pieces meeting</i>, one conductor's curves in the two spans meet there; "
+        "<i>wires ending</i>, the wires end together where the images see past them (the "
+        "position is where the measurements end, short of the tower by its insulators at "
+        "most).</p>"
+    )
+
+
 def write_report(
     result: ReconstructionResult,
     output_path: Path,
@@ -296,7 +343,8 @@ def write_report(
             )
         )
     rows = "".join(
-        f"<tr><td>{w.wire_id}</td><td>{m.kind}</td><td>{m.span_length_m:.2f}</td>"
+        f"<tr><td>{w.wire_id}</td><td>{_where(result, k)}</td><td>{m.kind}</td>"
+        f"<td>{m.span_length_m:.2f}</td>"
         f"<td>{m.sag_max_m:.3f}</td><td>{m.sag_midspan_m:.3f}</td>"
         f"<td>{m.clearance_vertical_m:.2f}</td><td>{m.clearance_3d_m:.2f}</td>"
         f"<td>{len(m.flagged)}</td><td>{len(w.point_indices)}</td><td>{w.rms_residual:.3f}</td>"
@@ -321,7 +369,9 @@ def write_report(
         f"<h1>Wires of {html.escape(str(result.scene.image_path))}</h1>"
         f"<p>{len(result.wires)} wires from {len(result.verified)} verified points, "
         f"{len(result.pairs)} pairs, {len(result.scene)} images. Units: {units}.</p>{limit}"
-        "<table><tr><th>wire</th><th>kind</th><th>span</th><th>sag max</th><th>sag mid</th>"
+        f"{_supports_table(result, units)}"
+        "<table><tr><th>wire</th><th>line / span / conductor</th><th>kind</th><th>span</th>"
+        "<th>sag max</th><th>sag mid</th>"
         "<th>clearance vertical</th><th>clearance 3D</th><th>flagged</th><th>points</th>"
         f"<th>fit RMS</th><th>measured</th><th>pairs vs traced</th></tr>{rows}</table>"
         "<p>Measured: the share of the wire between its ends that its measured points cover, "

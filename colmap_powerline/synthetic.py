@@ -77,6 +77,16 @@ class FlightPattern(StrEnum):
         return None
 
 
+class Layout(StrEnum):
+    """What hangs over the ground."""
+
+    SPAN = "span"  # one span of a double circuit between two lattice towers
+    ANGLE = "angle"  # two spans, the line turning by turn_deg at the middle (angle) tower;
+    # the flight's strips follow each leg (corridor or along4)
+    CROSSING = "crossing"  # the span, and a single-circuit line on two poles crossing it
+    # at crossing_deg, lower down; an area survey (grid) covers both
+
+
 # Side overlap of each flight pattern when SyntheticSpanOptions.side_overlap is None.
 DEFAULT_SIDE_OVERLAP = {
     FlightPattern.CORRIDOR: 0.65,
@@ -94,6 +104,9 @@ class SyntheticSpanOptions:
     background: Background = Background.VEGETATION
     flight: FlightPattern = FlightPattern.ACROSS
     span_m: float = 100.0  # horizontal distance between the towers
+    layout: Layout = Layout.SPAN
+    turn_deg: float = 25.0  # layout "angle": the line's turn at the angle tower
+    crossing_deg: float = 70.0  # layout "crossing": the pole line's angle to the span
     line_azimuth_deg: float = 35.0  # direction tower A → B, clockwise from north
     height_above_wires_m: float = 45.0  # flying height above the highest wire
     forward_overlap: float = 0.8
@@ -121,6 +134,19 @@ class SyntheticSpanOptions:
             raise ValueError(f"{self.num_shield_wires=} but expected 1 or 2")
         self.background = Background(self.background)
         self.flight = FlightPattern(self.flight)
+        self.layout = Layout(self.layout)
+        legs = (FlightPattern.CORRIDOR, FlightPattern.ALONG4)
+        if self.layout is Layout.ANGLE and self.flight not in legs:
+            raise ValueError(
+                f"layout angle is flown along its legs: {self.flight=} but expected "
+                "corridor or along4"
+            )
+        if self.layout is Layout.CROSSING and self.flight is not FlightPattern.GRID:
+            raise ValueError(f"layout crossing is an area survey: {self.flight=} but expected grid")
+        if not 0.0 < self.turn_deg <= 60.0:
+            raise ValueError(f"{self.turn_deg=} but expected 0 < turn_deg ≤ 60")
+        if not 20.0 <= self.crossing_deg <= 90.0:
+            raise ValueError(f"{self.crossing_deg=} but expected 20 ≤ crossing_deg ≤ 90")
         if self.side_overlap is not None and not 0.0 <= self.side_overlap < 1.0:
             raise ValueError(f"{self.side_overlap=} but expected 0 ≤ side_overlap < 1")
 
@@ -146,6 +172,8 @@ class TrueWire:
     attach_b: tuple[float, float, float]
     catenary_a_m: float
     diameter_m: float
+    line: int = 1  # the line it belongs to (1, 2, …)
+    span: int = 1  # its span along that line (1, 2, …)
 
     @property
     def direction_xy(self) -> F64:
@@ -194,6 +222,8 @@ class TrueWire:
         return {
             "id": self.wire_id,
             "kind": self.kind,
+            "line": self.line,
+            "span": self.span,
             "attach_a": list(self.attach_a),
             "attach_b": list(self.attach_b),
             "catenary": {"a_m": self.catenary_a_m, "s0_m": self.s0, "z0_m": self.z0},
@@ -213,6 +243,8 @@ class TrueWire:
             attach_b=tuple(d["attach_b"]),
             catenary_a_m=float(d["catenary"]["a_m"]),
             diameter_m=float(d["diameter_m"]),
+            line=int(d.get("line", 1)),
+            span=int(d.get("span", 1)),
         )
 
 
@@ -262,6 +294,8 @@ class SyntheticSpan:
     sun_in_world: F64  # unit vector towards the sun
     ortho: np.ndarray = field(repr=False)  # (H, W, 4) uint8: radiance RGB + detail amplitude
     strips: list[int] = field(default_factory=list)  # flight strip of each view (0, 1, …)
+    supports: list[dict] = field(default_factory=list)  # each tower or pole: line, kind
+    # (suspension, angle, pole), position of its base (x, y, z), top_z
     ortho_x0: float = 0.0
     ortho_y0: float = 0.0
     ortho_res_m: float = 0.05
@@ -303,84 +337,170 @@ def _make_terrain(opts: SyntheticSpanOptions, rng: np.random.Generator) -> Terra
     return Terrain(float(x[0]), float(x[0]), res, z.astype(np.float32))
 
 
-def _make_towers_and_wires(
-    opts: SyntheticSpanOptions, terrain: Terrain, rng: np.random.Generator
-) -> tuple[list[list[Member]], list[TrueWire]]:
-    along, across = _line_frame(opts)
+def _lattice_tower(
+    base: F64, along: F64, across: F64, arm_scale: float, num_shield_wires: int
+) -> tuple[list[Member], dict[tuple, tuple[float, float, float]]]:
+    """A double-circuit lattice tower at ``base`` whose cross-arms run along ``across``
+    (``arm_scale`` times their usual length: an angle tower's arms bisect the turn and are
+    longer, so that each conductor keeps its offset from the line on both legs); its
+    members and the attachment point of each wire."""
     arm_z = (21.0, 26.0, 31.0)  # cross-arm heights above the tower base
     arm_len = (5.0, 5.5, 5.0)  # stacked phases, the middle one 0.5 m further out
     insulator_m = 2.0
     top_z, shield_z = 36.0, 37.0
-    towers: list[list[Member]] = []
-    attach: list[dict[tuple, tuple[float, float, float]]] = []
 
-    def world(base: F64, s_off: float, c: float, z: float) -> tuple[float, float, float]:
+    def world(s_off: float, c: float, z: float) -> tuple[float, float, float]:
         xy = base[:2] + s_off * along + c * across
         return (float(xy[0]), float(xy[1]), float(base[2] + z))
 
-    for sign in (-1.0, 1.0):
-        xy = sign * opts.span_m / 2 * along
-        base = np.array([xy[0], xy[1], terrain.height(xy)[0]])
-        members: list[Member] = []
-        levels = [0.0, 4.0, 8.0, 12.0, 16.0, 19.0, *arm_z, top_z]
-        levels = sorted(set(levels))
+    members: list[Member] = []
+    levels = sorted({0.0, 4.0, 8.0, 12.0, 16.0, 19.0, *arm_z, top_z})
 
-        def half_width(z: float) -> float:
-            return 3.6 - 2.4 * min(z / 19.0, 1.0)
+    def half_width(z: float) -> float:
+        return 3.6 - 2.4 * min(z / 19.0, 1.0)
 
-        corners = [(1, 1), (1, -1), (-1, -1), (-1, 1)]
-        for z1, z2 in zip(levels[:-1], levels[1:], strict=True):
-            h1, h2 = half_width(z1), half_width(z2)
-            for k, (a, b) in enumerate(corners):
-                a2, b2 = corners[(k + 1) % 4]
-                members.append(
-                    Member(world(base, a * h1, b * h1, z1), world(base, a * h2, b * h2, z2), 0.3)
-                )
-                members.append(
-                    Member(world(base, a * h2, b * h2, z2), world(base, a2 * h2, b2 * h2, z2), 0.1)
-                )
-                members.append(
-                    Member(world(base, a * h1, b * h1, z1), world(base, a2 * h2, b2 * h2, z2), 0.08)
-                )
-                members.append(
-                    Member(world(base, a2 * h1, b2 * h1, z1), world(base, a * h2, b * h2, z2), 0.08)
-                )
-        points: dict[tuple, tuple[float, float, float]] = {}
-        hw = half_width(arm_z[0])
-        for phase, (z, length) in enumerate(zip(arm_z, arm_len, strict=True)):
-            for side in (-1.0, 1.0):
-                tip = world(base, 0.0, side * length, z)
-                for sa in (-1.0, 1.0):
-                    members.append(Member(world(base, sa * hw, side * hw, z), tip, 0.15))
-                    members.append(Member(world(base, sa * hw, side * hw, z + 1.8), tip, 0.1))
-                low = world(base, 0.0, side * length, z - insulator_m)
-                members.append(Member(tip, low, 0.25))
-                points[("c", side, phase)] = low
-        shield_c = (-3.0, 3.0) if opts.num_shield_wires == 2 else (0.0,)
-        for c in shield_c:
-            tip = world(base, 0.0, c, shield_z)
+    corners = [(1, 1), (1, -1), (-1, -1), (-1, 1)]
+    for z1, z2 in zip(levels[:-1], levels[1:], strict=True):
+        h1, h2 = half_width(z1), half_width(z2)
+        for k, (a, b) in enumerate(corners):
+            a2, b2 = corners[(k + 1) % 4]
+            members.append(Member(world(a * h1, b * h1, z1), world(a * h2, b * h2, z2), 0.3))
+            members.append(Member(world(a * h2, b * h2, z2), world(a2 * h2, b2 * h2, z2), 0.1))
+            members.append(Member(world(a * h1, b * h1, z1), world(a2 * h2, b2 * h2, z2), 0.08))
+            members.append(Member(world(a2 * h1, b2 * h1, z1), world(a * h2, b * h2, z2), 0.08))
+    points: dict[tuple, tuple[float, float, float]] = {}
+    hw = half_width(arm_z[0])
+    for phase, (z, length) in enumerate(zip(arm_z, arm_len, strict=True)):
+        for side in (-1.0, 1.0):
+            tip = world(0.0, side * length * arm_scale, z)
             for sa in (-1.0, 1.0):
-                members.append(Member(world(base, sa * hw, np.sign(c) * hw, top_z), tip, 0.12))
-            points[("s", c, 0)] = tip
+                members.append(Member(world(sa * hw, side * hw, z), tip, 0.15))
+                members.append(Member(world(sa * hw, side * hw, z + 1.8), tip, 0.1))
+            low = world(0.0, side * length * arm_scale, z - insulator_m)
+            members.append(Member(tip, low, 0.25))
+            points[("c", side, phase)] = low
+    shield_c = (-3.0, 3.0) if num_shield_wires == 2 else (0.0,)
+    for c in shield_c:
+        tip = world(0.0, c * arm_scale, shield_z)
+        for sa in (-1.0, 1.0):
+            members.append(Member(world(sa * hw, np.sign(c) * hw, top_z), tip, 0.12))
+        points[("s", c, 0)] = tip
+    return members, points
+
+
+def _pole(base: F64, across: F64) -> tuple[list[Member], dict[tuple, tuple[float, float, float]]]:
+    """A 12 m steel pole of a single-circuit line: two conductors on pin insulators at the
+    ends of a cross-arm (±1.2 m, 10.5 m up), the third on its top."""
+
+    def world(c: float, z: float) -> tuple[float, float, float]:
+        xy = base[:2] + c * across
+        return (float(xy[0]), float(xy[1]), float(base[2] + z))
+
+    members = [Member(world(0.0, 0.0), world(0.0, 12.0), 0.3)]
+    members.append(Member(world(-1.3, 10.5), world(1.3, 10.5), 0.12))
+    points = {("p", -1.0, 0): world(-1.2, 10.7), ("p", 1.0, 0): world(1.2, 10.7)}
+    points[("p", 0.0, 0)] = world(0.0, 12.2)
+    return members, points
+
+
+def _leg_frames(opts: SyntheticSpanOptions) -> list[tuple[F64, F64, F64]]:
+    """Each straight leg of the line: (its middle, along, across) in plan."""
+    along, across = _line_frame(opts)
+    if opts.layout is not Layout.ANGLE:
+        return [(np.zeros(2), along, across)]
+    az = np.deg2rad(opts.line_azimuth_deg + opts.turn_deg)
+    along2 = np.array([np.sin(az), np.cos(az)])
+    return [
+        (-opts.span_m / 2 * along, along, across),
+        (opts.span_m / 2 * along2, along2, np.array([along2[1], -along2[0]])),
+    ]
+
+
+def _make_towers_and_wires(
+    opts: SyntheticSpanOptions, terrain: Terrain, rng: np.random.Generator
+) -> tuple[list[list[Member]], list[TrueWire], list[dict]]:
+    """Towers (members), wires and supports of the layout."""
+    legs = _leg_frames(opts)
+    if opts.layout is Layout.ANGLE:
+        (_, along, across), (_, along2, across2) = legs
+        half = 0.5 * np.deg2rad(opts.turn_deg)
+        bisector = (along + along2) / np.linalg.norm(along + along2)
+        sites = [
+            (-opts.span_m * along, along, across, 1.0),
+            (np.zeros(2), bisector, np.array([bisector[1], -bisector[0]]), 1.0 / np.cos(half)),
+            (opts.span_m * along2, along2, across2, 1.0),
+        ]
+    else:
+        _, along, across = legs[0]
+        sites = [(sign * opts.span_m / 2 * along, along, across, 1.0) for sign in (-1.0, 1.0)]
+    towers: list[list[Member]] = []
+    attach: list[dict[tuple, tuple[float, float, float]]] = []
+    supports: list[dict] = []
+    for xy, al, ac, arm_scale in sites:
+        base = np.array([xy[0], xy[1], terrain.height(xy)[0]])
+        members, points = _lattice_tower(base, al, ac, arm_scale, opts.num_shield_wires)
         towers.append(members)
         attach.append(points)
+        supports.append(
+            {
+                "line": 1,
+                "kind": "angle" if arm_scale != 1.0 else "suspension",
+                "base": base.tolist(),
+                "top_z": max(p[2] for p in points.values()),
+            }
+        )
 
     wires: list[TrueWire] = []
     for key in attach[0]:
         kind = "conductor" if key[0] == "c" else "shield"
         a_m = float(rng.uniform(450, 650) if kind == "conductor" else rng.uniform(700, 900))
-        wires.append(
-            TrueWire(
-                wire_id=len(wires),
-                kind=kind,
-                attach_a=attach[0][key],
-                attach_b=attach[1][key],
-                catenary_a_m=a_m,
-                # ~2.8 cm ACSR conductors, ~2 cm shield wires: 1.4 px and 1 px at 2 cm GSD.
-                diameter_m=0.028 if kind == "conductor" else 0.02,
+        for k in range(len(sites) - 1):
+            wires.append(
+                TrueWire(
+                    wire_id=len(wires),
+                    kind=kind,
+                    attach_a=attach[k][key],
+                    attach_b=attach[k + 1][key],
+                    catenary_a_m=a_m,
+                    # ~2.8 cm ACSR conductors, ~2 cm shield wires: 1.4 px and 1 px at 2 cm GSD.
+                    diameter_m=0.028 if kind == "conductor" else 0.02,
+                    span=k + 1,
+                )
             )
-        )
-    return towers, wires
+    if opts.layout is Layout.CROSSING:
+        # A 70 m pole span crossing the first 15 m from its middle, 4-5 m below it.
+        az = np.deg2rad(opts.line_azimuth_deg + opts.crossing_deg)
+        along_c = np.array([np.sin(az), np.cos(az)])
+        across_c = np.array([along_c[1], -along_c[0]])
+        crossing = 0.15 * opts.span_m * along
+        poles = []
+        for sign in (-1.0, 1.0):
+            xy = crossing + sign * 35.0 * along_c
+            base = np.array([xy[0], xy[1], terrain.height(xy)[0]])
+            members, points = _pole(base, across_c)
+            towers.append(members)
+            poles.append(points)
+            supports.append(
+                {
+                    "line": 2,
+                    "kind": "pole",
+                    "base": base.tolist(),
+                    "top_z": max(p[2] for p in points.values()),
+                }  # fmt: skip
+            )
+        for key in poles[0]:
+            wires.append(
+                TrueWire(
+                    wire_id=len(wires),
+                    kind="conductor",
+                    attach_a=poles[0][key],
+                    attach_b=poles[1][key],
+                    catenary_a_m=float(rng.uniform(400, 600)),  # 1.0-1.5 m of sag
+                    diameter_m=0.022,
+                    line=2,
+                )
+            )
+    return towers, wires, supports
 
 
 def make_camera(scale: float) -> pycolmap.Camera:
@@ -412,34 +532,41 @@ def _rotation_nadir(heading_xy: F64, rng: np.random.Generator, jitter_deg: float
 
 def _plan_strips(
     opts: SyntheticSpanOptions, fp_across: float, fp_along: float
-) -> tuple[F64, F64, float, list[float]]:
-    """The flight's strips: direction, offset direction, half length, offsets (plan, m).
+) -> list[tuple[F64, F64, F64, float, list[float]]]:
+    """The flight's strips, per leg of the line: (middle, direction, offset direction, half
+    length, offsets) in plan.
 
-    Strip ``k`` runs through ``offsets[k] * offset_dir`` from ``-half_length`` to
-    ``+half_length`` along ``strip_dir``; image x runs across the strip.
+    Strip ``k`` of a leg runs through ``middle + offsets[k] * offset_dir`` from
+    ``-half_length`` to ``+half_length`` along its direction; image x runs across the strip.
+    A line turning at an angle tower is flown leg by leg (each leg's strips run a quarter
+    footprint past its towers, so the legs overlap at the angle tower).
     """
-    along, across = _line_frame(opts)
     spacing = (1 - opts.flight_side_overlap) * fp_across
+    legs = _leg_frames(opts)
+    half_span = opts.span_m / 2
     if opts.flight is FlightPattern.CORRIDOR:
-        return along, across, opts.span_m / 2 + 0.25 * fp_along, [-spacing, 0.0, spacing]
+        return [(m, al, ac, half_span + 0.25 * fp_along, [-spacing, 0.0, spacing])
+                for m, al, ac in legs]  # fmt: skip
     if opts.flight is FlightPattern.ALONG4:
         offsets = [(k - 1.5) * spacing for k in range(4)]
-        return along, across, opts.span_m / 2 + 0.25 * fp_along, offsets
+        return [(m, al, ac, half_span + 0.25 * fp_along, offsets) for m, al, ac in legs]
+    _, along, across = legs[0]
     if opts.flight is FlightPattern.GRID:
         # Cover the span plus a margin along the line and ±GRID_HALF_WIDTH_M across it.
         ga = np.deg2rad(opts.grid_angle_deg)
         strip_dir = np.cos(ga) * along + np.sin(ga) * across
         off_dir = -np.sin(ga) * along + np.cos(ga) * across
-        hu, hv = opts.span_m / 2 + 0.25 * fp_along, GRID_HALF_WIDTH_M
+        hu, hv = half_span + 0.25 * fp_along, GRID_HALF_WIDTH_M
         corners = np.array([[a * hu, c * hv] for a in (-1, 1) for c in (-1, 1)])
         corners_xy = corners[:, :1] * along + corners[:, 1:] * across
         half_length = float(np.abs(corners_xy @ strip_dir).max())
         half_width = float(np.abs(corners_xy @ off_dir).max())
         n_strips = int(np.ceil(2 * half_width / spacing)) + 1
         offsets = list((np.arange(n_strips) - (n_strips - 1) / 2) * spacing)
-        return strip_dir, off_dir, half_length, offsets
+        return [(np.zeros(2), strip_dir, off_dir, half_length, offsets)]
     n_strips = int(np.ceil((opts.span_m + 0.2 * fp_across) / spacing)) + 1
-    return across, along, 0.6 * fp_along, list((np.arange(n_strips) - (n_strips - 1) / 2) * spacing)
+    offsets = list((np.arange(n_strips) - (n_strips - 1) / 2) * spacing)
+    return [(np.zeros(2), across, along, 0.6 * fp_along, offsets)]
 
 
 def _plan_flight(
@@ -456,30 +583,54 @@ def _plan_flight(
     fp_across = camera.width * gsd  # image x runs across the strip
     fp_along = camera.height * gsd
     base = (1 - opts.forward_overlap) * fp_along
-    strip_dir, strip_off_dir, extent, offsets = _plan_strips(opts, fp_across, fp_along)
-    n = int(np.ceil(2 * extent / base)) + 1
-    positions = np.linspace(-extent, extent, n)
     views: list[SceneImage] = []
     strips: list[int] = []
-    for k, off in enumerate(offsets):
-        sign = 1.0 if k % 2 == 0 else -1.0  # serpentine: every other strip flown backwards
-        for p in positions[:: int(sign)]:
-            xy = p * strip_dir + off * strip_off_dir + rng.normal(0, opts.position_jitter_m, 2)
-            center = np.array([xy[0], xy[1], z_cam + rng.normal(0, opts.position_jitter_m / 2)])
-            rot = _rotation_nadir(sign * strip_dir, rng, opts.attitude_jitter_deg)
-            name = f"DJI_{len(views) + 1:04d}.JPG"
-            views.append(
-                SceneImage(
-                    image_id=len(views) + 1,
-                    name=name,
-                    path=Path(name),
-                    camera=camera,
-                    rot_cam_from_world=rot,
-                    t_cam_from_world=-rot @ center,
-                )
-            )
-            strips.append(k)
+    k = -1
+    for middle, strip_dir, strip_off_dir, extent, offsets in _plan_strips(
+        opts, fp_across, fp_along
+    ):
+        n = int(np.ceil(2 * extent / base)) + 1
+        positions = np.linspace(-extent, extent, n)
+        for off in offsets:
+            k += 1
+            views += _fly_strip(
+                opts, camera, rng, k, middle + off * strip_off_dir, strip_dir, positions,
+                z_cam, len(views),
+            )  # fmt: skip
+            strips += [k] * (len(views) - len(strips))
     return views, strips
+
+
+def _fly_strip(
+    opts: SyntheticSpanOptions,
+    camera: pycolmap.Camera,
+    rng: np.random.Generator,
+    k: int,
+    through: F64,
+    strip_dir: F64,
+    positions: F64,
+    z_cam: float,
+    first: int,
+) -> list[SceneImage]:
+    """The views of strip ``k`` (serpentine: every other strip flown backwards)."""
+    views: list[SceneImage] = []
+    sign = 1.0 if k % 2 == 0 else -1.0
+    for p in positions[:: int(sign)]:
+        xy = through + p * strip_dir + rng.normal(0, opts.position_jitter_m, 2)
+        center = np.array([xy[0], xy[1], z_cam + rng.normal(0, opts.position_jitter_m / 2)])
+        rot = _rotation_nadir(sign * strip_dir, rng, opts.attitude_jitter_deg)
+        name = f"DJI_{first + len(views) + 1:04d}.JPG"
+        views.append(
+            SceneImage(
+                image_id=first + len(views) + 1,
+                name=name,
+                path=Path(name),
+                camera=camera,
+                rot_cam_from_world=rot,
+                t_cam_from_world=-rot @ center,
+            )
+        )
+    return views
 
 
 # ---------------------------------------------------------------- ground texture
@@ -649,13 +800,22 @@ def build_span(opts: SyntheticSpanOptions) -> SyntheticSpan:
     """Build the scene geometry, flight and ground texture (no files written)."""
     rng = np.random.default_rng(opts.seed)
     terrain = _make_terrain(opts, rng)
-    towers, wires = _make_towers_and_wires(opts, terrain, rng)
+    towers, wires, supports = _make_towers_and_wires(opts, terrain, rng)
     camera = make_camera(opts.scale)
     views, strips = _plan_flight(opts, camera, wires, terrain, rng)
     az, el = np.deg2rad(opts.sun_azimuth_deg), np.deg2rad(opts.sun_elevation_deg)
     sun = np.array([np.sin(az) * np.cos(el), np.cos(az) * np.cos(el), np.sin(el)])
     span = SyntheticSpan(
-        opts, camera, views, wires, towers, terrain, sun, ortho=np.zeros(0), strips=strips
+        opts,
+        camera,
+        views,
+        wires,
+        towers,
+        terrain,
+        sun,
+        ortho=np.zeros(0),
+        strips=strips,
+        supports=supports,
     )
     domain = _ground_domain(views, float(terrain.z.mean()))
     _bake_ortho(span, domain, rng)
@@ -1010,6 +1170,7 @@ def generate_span(
                     "frame": "local ENU, metres",
                     "origin_wgs84": [opts.origin_lat_deg, opts.origin_lon_deg, opts.origin_alt_m],
                     "wires": [w.to_json() for w in span.wires],
+                    "supports": span.supports,
                 },
                 f,
             )

@@ -158,6 +158,33 @@ class VerifiedPoints:
             primitive_index=np.full(n, -1, np.int64),
         )
 
+    def concatenated(
+        self, other: VerifiedPoints, pair_offset: int, primitive_offset: int
+    ) -> VerifiedPoints:
+        """These points, then ``other``'s (verified from other pairs: its pair and primitive
+        numbers shifted past these). The views' hit rates are the better of the two; the
+        wire pixels and pending points stay these (they belong to one set of pairs)."""
+        shift_pair = np.where(other.pair_index >= 0, other.pair_index + pair_offset, -1)
+        shift_prim = np.where(
+            other.primitive_index >= 0, other.primitive_index + primitive_offset, -1
+        )
+        out = self._appended(
+            pts_in_world=other.pts_in_world,
+            hits=other.hits,
+            views=other.views,
+            crossing_views=other.crossing_views,
+            crossing_hits=other.crossing_hits,
+            posterior=other.posterior,
+            pair_index=shift_pair.astype(np.int32),
+            refined=other.refined,
+            primitive_index=shift_prim.astype(np.int64),
+        )
+        return dataclasses.replace(
+            out,
+            decoded=self.decoded + other.decoded,
+            view_hit_rates=np.fmax(self.view_hit_rates, other.view_hit_rates),
+        )
+
     def with_pending(self, take: npt.NDArray[np.int64], min_posterior: float) -> VerifiedPoints:
         """These points plus the pending ones ``take`` (their posterior with the prior 1/2 of
         a point whose match is settled), the other pending points still pending."""

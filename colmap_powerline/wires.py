@@ -177,7 +177,6 @@ class FittedWire:
             clearance = float(np.min(poly[:, 2] - ground_height(poly[:, :2])))
         return {
             "id": self.wire_id,
-            "span": 0,  # spans are not separated yet: every wire belongs to span 0
             "catenary": {"a": self.catenary_a, "s0": self.s0, "z0": self.z0},
             "plane": {
                 "origin": self.plane_origin_xy.tolist(),

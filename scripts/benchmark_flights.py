@@ -19,7 +19,15 @@ Generators:
   along4   mixed, vegetation, soil (= bare_soil)      4 strips along, 68 %
   grid     grid (mixed)                               strips at 35°
   across   cross (mixed)                              3 strips across
+  multispan multispan (mixed; 4 spans, angle tower)   3 strips along each leg
+  twolines twolines (line of towers + line of poles)  area survey at 35°
   ======== ========================================== ==================
+
+The two survey layouts (``multispan``, ``twolines``; shared generator only: the package
+renders one span) add to their row: the spans the output numbers against the true ones, the
+least complete span, and the supports: true towers and poles matched by a support found
+within 0.5 m in plan and 1 m in height (its highest attachment against the tower's top), how
+many were found, and the worst plan and height errors.
 
 Every cell renders its scene at ``--scale`` (cached under ``--work_path`` and reused), runs
 ``colmap-powerline reconstruct --image_path SCENE/images --input_path SCENE/sparse/0`` in a
@@ -59,7 +67,9 @@ from typing import Any
 import cv2
 import numpy as np
 
-FLIGHTS = ("corridor", "along4", "grid", "across")
+FLIGHTS = ("corridor", "along4", "grid", "across", "multispan", "twolines")
+# Survey layouts of several spans (the shared generator's; the package renders one span).
+LAYOUTS = ("multispan", "twolines")
 GROUNDS = ("vegetation", "bare_soil", "mixed")
 GENERATORS = ("package", "shared")
 # The shared generator's flight kinds and ground names, in this package's terms.
@@ -109,14 +119,17 @@ def plan_cells(args: argparse.Namespace) -> list[Cell]:
     cells: list[Cell] = []
     for generator in args.generators:
         if generator == "package":
-            for flight in args.flights:
+            for flight in [f for f in args.flights if f not in LAYOUTS]:
                 for ground in args.grounds:
                     for seed in args.seeds:
                         cells.append(Cell("package", flight, ground, seed))
             continue
         presets = shared_presets(args.shared_path)
         chosen: dict[tuple[str, int], Cell] = {}
-        for flight in args.flights:
+        for flight in [f for f in args.flights if f in LAYOUTS]:
+            for seed in args.seeds:  # the layout fixes its ground (mixed)
+                cells.append(Cell("shared", flight, "mixed", seed, flight, [flight]))
+        for flight in [f for f in args.flights if f not in LAYOUTS]:
             options = {g: p for p, (f, g) in presets.items() if f == flight}
             if not options:
                 print(f"shared: no preset flies {flight}; skipped")
@@ -365,7 +378,17 @@ def score_shared(scene: Path, out: Path, shared_path: Path) -> dict[str, Any]:
     ]
     labels = r.get("labels") or {}
     ghosts = sum(1 for v in (labels.get("per_label") or {}).values() if v["outlier_fraction"] > 0.5)
-    fitted = json.loads((out / "wires.json").read_text())["wires"]
+    doc = json.loads((out / "wires.json").read_text())
+    fitted = doc["wires"]
+    spans = r["completeness"].get("per_span")
+    layout = {}
+    if spans:
+        layout = {
+            "span_min": min(v["completeness"] for v in spans.values()) if spans else None,
+            "spans_true": len(spans),
+            "spans_found": len({(w.get("line"), w.get("span")) for w in fitted}),
+            **score_supports(doc.get("supports", []), scene),
+        }
     return {
         "wires": wires,
         "num_points": r["n_points"],
@@ -374,6 +397,30 @@ def score_shared(scene: Path, out: Path, shared_path: Path) -> dict[str, Any]:
         "outlier_share": r["accuracy"]["outlier_fraction"],
         "ghosts": ghosts,
         "purity": labels.get("purity_weighted"),
+        **layout,
+    }
+
+
+def score_supports(found: Sequence[dict[str, Any]], scene: Path) -> dict[str, Any]:
+    """The true towers and poles matched by supports found: the nearest in plan, within
+    0.5 m in plan and 1 m in height (its highest attachment against the tower's top)."""
+    towers = json.loads((scene / "gt" / "wires.json").read_text())["scene"]["towers"]
+    plan, height, ok = [], [], 0
+    for t in towers:
+        if not found:
+            break
+        d = [math.dist(f["position"][:2], t["base"][:2]) for f in found]
+        k = int(np.argmin(d))
+        dz = found[k]["top_z"] - t["top_z"]
+        plan.append(d[k])
+        height.append(dz)
+        ok += d[k] <= 0.5 and abs(dz) <= 1.0
+    return {
+        "supports_true": len(towers),
+        "supports_found": len(found),
+        "supports_right": ok,
+        "support_plan_max_m": max(plan) if plan else None,
+        "support_height_max_m": max(abs(h) for h in height) if height else None,
     }
 
 
@@ -476,6 +523,13 @@ def markdown(rows: Sequence[dict[str, Any]]) -> str:
             ]
         else:
             cols = ["–"] * 7
+        if ok and r.get("spans_true"):
+            cols[1] += (
+                f"; spans {r['spans_found']}/{r['spans_true']}, each ≥ {_pct(r['span_min'])}; "
+                f"supports {r['supports_right']}/{r['supports_true']} right "
+                f"({r['supports_found']} found; worst {r['support_plan_max_m']:.2f} m in plan, "
+                f"{r['support_height_max_m']:.2f} m in height)"
+            )
         time_text = "–" if r.get("time_s") is None else f"{r['time_s']:.0f}"
         floor = r.get("decode_s")
         ratio = "–" if r.get("time_s") is None or not floor else f"{r['time_s'] / floor:.1f}"

@@ -232,3 +232,32 @@ def test_fill_with_an_output_crs_puts_the_dense_cloud_in_it(tmp_path):
     with pytest.raises(InputError, match="lie outside this cloud.*not the same frame"):
         fill(dense, out / "wires.json", tmp_path / "x.ply", dense_frame="wires")
     assert not (tmp_path / "x.ply").exists()
+
+
+def test_fill_classifies_the_supports_dense_points_as_towers(tmp_path):
+    """Dense points above the ground within a support's reach (and up to its top) are class
+    15; a tree of the same height 20 m away is not."""
+    from colmap_powerline.spans import LineSupport, WireSpan
+
+    w = _wire(0, 0.0, 12.0)
+    sup = LineSupport(0, 1, "end", np.array([0.0, 0.0, 0.0]), 16.0, 0.0, (0,), "wires ending",
+                      reach_m=3.0)  # fmt: skip
+    export_results(
+        tmp_path, wires=[w], points=w.polyline(0.5), labels=np.zeros(len(w.polyline(0.5)), int),
+        primitives=None, metadata={"input_model": "test"}, measures=[measure_wire(w, _ground())],
+        placement=[WireSpan(1, 1, (0, None), 0)], line_supports=[sup],
+    )  # fmt: skip
+    rng = np.random.default_rng(0)
+    ground = np.c_[rng.uniform(-20, 120, 20_000), rng.uniform(-30, 30, 20_000), np.zeros(20_000)]
+    tower = np.c_[rng.uniform(-2.5, 2.5, (3000, 2)), rng.uniform(1.0, 16.5, 3000)]
+    tree = np.c_[rng.uniform(18, 22, (1000, 2)), rng.uniform(1.0, 15.0, 1000)]
+    dense = tmp_path / "fused.ply"
+    write_fused_ply(dense, np.concatenate([ground, tower, tree]))
+    result = fill(dense, tmp_path / "wires.json", tmp_path / "m.ply", las=True)
+    # (the ground surface, the 5th percentile per 1 m cell, is lifted where the tower's
+    # points outnumber the ground's: a few of its lowest count as ground)
+    assert 0.95 * 3000 <= result.num_tower <= 3000
+    cls = np.asarray(laspy.read(result.las_path).classification)
+    assert np.count_nonzero(cls == 15) == result.num_tower
+    assert np.all(cls[20_000:23_000][cls[20_000:23_000] != 2] == 15)
+    assert not np.any(cls[23_000:24_000] == 15)  # the tree

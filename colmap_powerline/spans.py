@@ -1,0 +1,849 @@
+"""Lines, spans and supports: the towers and poles the conductors hang from, from the wires.
+
+A conductor hangs in spans, each a catenary between two supports. Where it passes a
+support it kinks: the support holds it up, so its slope drops there by the two spans' end
+slopes together (a 90 m span with 3 m of sag ends at 7-8°: the kink is about 15°). A
+single catenary through both spans misses the points on either side by decimetres, two
+catenaries meeting at the support fit them to the measurement noise. Supports are found
+where the wires say so, in three ways:
+
+- **a kink inside a wire** (one wire measured across the support): the place where two
+  curves, fitted to the points on either side, fit far better than one, meeting in a
+  downward bend;
+- **two pieces meeting**: one conductor's pieces in neighbouring spans, ending on either
+  side of a support, whose curves (extended) cross there in a downward bend;
+- **wires ending together** where the images see beyond them: the end of a line (a
+  terminal tower). Wires that end where the images end have left the survey, and no
+  support is made up for them.
+
+Kinks and meetings within ``support_radius`` along the line are one support; supports of
+two corridors (the legs of a line on either side of an angle tower) within twice that in
+plan are one angle support, and the legs are one line. Each wire is then cut at every
+support it runs across, numbered by span along its line, extended to its attachments (the
+supports it hangs between: the tips of the insulators, where the curves meet) and linked
+to the same conductor in the next span (attachments within ``same_conductor_m``).
+
+Everything here works on fitted wires and their points; no image is read.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+import numpy.typing as npt
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+
+from .pairs import WireCorridor
+from .wires import FittedWire, WiresOptions, refit
+
+logger = logging.getLogger(__name__)
+
+F64 = npt.NDArray[np.float64]
+I64 = npt.NDArray[np.int64]
+
+# Images that must see a place past the wires' ends for the end to be the line's (as
+# tracing needs to measure a place: two fix it, a third checks it).
+MIN_VIEWS_BEYOND = 3
+# How far past the ends that place is looked at (model units): past the insulators.
+BEYOND_M = (5.0, 10.0)
+
+
+@dataclass(kw_only=True)
+class SpanOptions:
+    min_kink_deg: float = 2.0  # a wire bending down by at least this where its two curves
+    # meet hangs from a support there (spans end at 5-10°: a kink is 10-20°; a catenary's
+    # slope changes smoothly and no piece of one bends)
+    min_improvement: float = 2.0  # and its two curves fit its points at least this many
+    # times better (RMS) than one (one curve through a support misses by decimetres, two
+    # fit to the noise of a few centimetres)
+    min_piece_m: float = 5.0  # each side of a kink holds at least this much wire
+    support_radius: float = 4.0  # kinks, meetings and ends this close along the line are
+    # one support (a tower's cross-arms are 4-7 m from its axis)
+    max_meeting_gap: float = 40.0  # pieces of one conductor at most this far apart along
+    # the line may meet at a support between them
+    same_conductor_m: float = 1.0  # attachments of two spans' wires this close at a
+    # support are one conductor (conductors hang 1-7 m apart)
+
+    def __post_init__(self) -> None:
+        for name in (
+            "min_kink_deg",
+            "min_piece_m",
+            "support_radius",
+            "max_meeting_gap",
+            "same_conductor_m",
+        ):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"{name}={getattr(self, name)} but expected > 0")
+        if not self.min_improvement >= 1:
+            raise ValueError(f"{self.min_improvement=} but expected ≥ 1")
+
+
+@dataclass(frozen=True)
+class LineSupport:
+    """A tower or pole found from the wires.
+
+    Attributes:
+        support_id: 0, 1, … in the order of the lines and along each line.
+        line: the line it carries (1, 2, …).
+        kind: ``suspension`` (the line runs straight through), ``angle`` (it turns there
+            by ``turn_deg``) or ``end`` (the line ends there).
+        position: (3,) its centre: in plan, midway across its wires on the line's axis; z
+            the ground under it.
+        top_z: the height of its highest attachment (model frame).
+        turn_deg: the line's change of direction there.
+        wire_ids: the wires attached to it.
+        found_by: ``kink``, ``pieces meeting`` or ``wires ending``.
+    """
+
+    support_id: int
+    line: int
+    kind: str
+    position: F64
+    top_z: float
+    turn_deg: float
+    wire_ids: tuple[int, ...]
+    found_by: str
+    reach_m: float = 0.0  # plan distance from its centre to its farthest attachment
+
+    def to_json(self, convert: Callable[[F64], F64] | None = None) -> dict:
+        pos = self.position if convert is None else convert(self.position[None])[0]
+        return {
+            "id": self.support_id,
+            "line": self.line,
+            "kind": self.kind,
+            "position": [float(v) for v in pos],
+            "top_z": self.top_z + float(pos[2] - self.position[2]),
+            "height_m": self.top_z - float(self.position[2]),
+            "turn_deg": self.turn_deg,
+            "wires": list(self.wire_ids),
+            "found_by": self.found_by,
+            "reach_m": self.reach_m,
+        }
+
+
+@dataclass(frozen=True)
+class WireSpan:
+    """Where a wire hangs: its line, span (both numbered from 1 along the line), the
+    supports at its first and last end (None: not found, e.g. outside the survey) and the
+    conductor it belongs to (the same number in every span)."""
+
+    line: int
+    span: int
+    supports: tuple[int | None, int | None]
+    conductor: int
+
+    def to_json(self) -> dict:
+        return {
+            "line": self.line,
+            "span": self.span,
+            "support_ids": list(self.supports),
+            "conductor": self.conductor,
+        }
+
+
+@dataclass
+class Spans:
+    """:func:`find_spans`: the wires cut at their supports, where each hangs, the supports,
+    and for each wire the index of the input wire it came from."""
+
+    wires: list[FittedWire]
+    placement: list[WireSpan]
+    supports: list[LineSupport]
+    source: list[int]
+    legs: list[int] = field(default_factory=list)
+
+
+@dataclass
+class _Candidate:
+    leg: int
+    u: float  # along the leg's axis
+    found_by: str
+    wire_ids: set[int]
+
+
+class _Leg:
+    """One corridor's plan axes: u along its direction from its centre, c across."""
+
+    def __init__(self, corridor: WireCorridor) -> None:
+        self.origin = np.asarray(corridor.centre_xy, np.float64)
+        self.direction = corridor.direction_xy
+        self.normal = corridor.normal_xy
+        self.azimuth_deg = corridor.azimuth_deg
+
+    def u(self, xy: F64) -> F64:
+        return (np.asarray(xy, np.float64).reshape(-1, 2) - self.origin) @ self.direction
+
+    def c(self, xy: F64) -> F64:
+        return (np.asarray(xy, np.float64).reshape(-1, 2) - self.origin) @ self.normal
+
+    def xy(self, u: float, c: float) -> F64:
+        return self.origin + u * self.direction + c * self.normal
+
+    def s_of(self, wire: FittedWire, u: float) -> float:
+        """The position along ``wire``'s plane that lies at ``u`` along this leg."""
+        d = float(wire.plane_direction_xy @ self.direction)
+        u0 = float(self.u(wire.plane_origin_xy)[0])
+        return (u - u0) / d if abs(d) > 1e-6 else float("nan")
+
+    def ends_u(self, wire: FittedWire) -> tuple[float, float]:
+        u = self.u(wire.points(np.array(wire.s_range))[:, :2])
+        return float(u.min()), float(u.max())
+
+
+def _parabola_rss(s: F64, z: F64) -> tuple[F64, F64]:
+    """For every split k of the sorted samples: the residual sums of squares of the best
+    parabolas through ``[:k]`` and ``[k:]`` (cumulative moments: all splits at once)."""
+    m = np.stack([s**j for j in range(5)])  # (5, N)
+    t = np.stack([z * s**j for j in range(3)])
+    zz = z**2
+
+    def sides(mom: F64, tz: F64, z2: F64) -> F64:
+        a = np.stack([np.stack([mom[i + j] for j in range(3)], -1) for i in range(3)], -2)
+        a = a + 1e-9 * np.eye(3)
+        beta = np.linalg.solve(a, tz.T[..., None])[..., 0]
+        return np.maximum(z2 - np.sum(beta * tz.T, axis=1), 0.0)
+
+    cm = np.concatenate([np.zeros((5, 1)), np.cumsum(m, axis=1)], axis=1)
+    ct = np.concatenate([np.zeros((3, 1)), np.cumsum(t, axis=1)], axis=1)
+    cz = np.r_[0.0, np.cumsum(zz)]
+    left = sides(cm, ct, cz)
+    right = sides(cm[:, -1:] - cm, ct[:, -1:] - ct, cz[-1] - cz)
+    return left, right
+
+
+def _parabola(s: F64, z: F64) -> F64:
+    return np.polyfit(s, z, 2)
+
+
+def _kink_between(left: F64, right: F64, lo: float, hi: float) -> tuple[float, float] | None:
+    """Where two parabolas (left and right of a support) cross between ``lo`` and ``hi``,
+    and the bend there in degrees (positive: downward, as a support makes)."""
+    roots = np.roots(left - right) if np.any(left != right) else np.array([])
+    roots = np.real(roots[np.abs(np.imag(roots)) < 1e-9])
+    roots = roots[(roots >= lo) & (roots <= hi)]
+    if not len(roots):
+        return None
+    mid = 0.5 * (lo + hi)
+    t = float(roots[np.argmin(np.abs(roots - mid))])
+    bend = np.degrees(
+        np.arctan(np.polyval(np.polyder(left), t)) - np.arctan(np.polyval(np.polyder(right), t))
+    )
+    return t, float(bend)
+
+
+def find_kink(wire: FittedWire, pts_in_world: F64, options: SpanOptions) -> float | None:
+    """The position along ``wire``'s plane of a support it was measured across (see the
+    module docstring), or None."""
+    s, _, _ = wire.plane_coords(pts_in_world[wire.point_indices])
+    z = pts_in_world[wire.point_indices, 2]
+    order = np.argsort(s)
+    s, z = s[order], z[order]
+    if len(s) > 4000:  # evenly thinned: the fit needs the shape, not every point
+        keep = np.linspace(0, len(s) - 1, 4000).astype(np.int64)
+        s, z = s[keep], z[keep]
+    if len(s) < 20 or s[-1] - s[0] < 2 * options.min_piece_m:
+        return None
+    centre, scale = 0.5 * (s[0] + s[-1]), 0.5 * (s[-1] - s[0])
+    x = (s - centre) / scale
+    left, right = _parabola_rss(x, z)
+    k = np.arange(len(s) + 1)
+    ok = (k >= 10) & (k <= len(s) - 10)
+    ok[10 : len(s) - 9] &= (s[9 : len(s) - 10] - s[0] >= options.min_piece_m) & (
+        s[-1] - s[10 : len(s) - 9] >= options.min_piece_m
+    )
+    if not ok.any():
+        return None
+    split = np.where(ok, left + right, np.inf)
+    best = int(np.argmin(split))
+    one = left[-1]
+    if not np.isfinite(split[best]) or one <= options.min_improvement**2 * split[best]:
+        return None
+    pl, pr = _parabola(x[:best], z[:best]), _parabola(x[best:], z[best:])
+    # The support lies between the two sides' points, or a little beyond either.
+    margin = options.support_radius / scale
+    kink = _kink_between(pl, pr, x[best - 1] - margin, x[best] + margin)
+    if kink is None:
+        return None
+    t, _ = kink
+    # The bend in degrees needs the real slopes: parabolas in s, not in x.
+    bend = np.degrees(
+        np.arctan(np.polyval(np.polyder(pl), t) / scale)
+        - np.arctan(np.polyval(np.polyder(pr), t) / scale)
+    )
+    if bend < options.min_kink_deg:
+        return None
+    return float(centre + t * scale)
+
+
+def _pieces_meet(
+    a: FittedWire, b: FittedWire, leg: _Leg, options: SpanOptions, max_across: float
+) -> float | None:
+    """Where two wires of one leg, ``a`` ending before ``b`` starts (along the leg), meet
+    at a support: their curves cross in the gap with a downward bend, in one vertical
+    plane. The position along the leg, or None."""
+    a_lo, a_hi = leg.ends_u(a)
+    b_lo, b_hi = leg.ends_u(b)
+    if not (a_hi <= b_lo + options.support_radius and b_lo - a_hi <= options.max_meeting_gap):
+        return None
+    lo, hi = a_hi - options.support_radius, b_lo + options.support_radius
+    u = np.linspace(lo, hi, max(int((hi - lo) / 0.25), 2))
+
+    def at(w: FittedWire) -> tuple[F64, F64]:
+        s = (u - float(leg.u(w.plane_origin_xy)[0])) / float(w.plane_direction_xy @ leg.direction)
+        p = w.points(s)
+        return leg.c(p[:, :2]), p[:, 2]
+
+    ca, za = at(a)
+    cb, zb = at(b)
+    # Fitted in the leg's u (parabolas: within a millimetre of the catenaries here).
+    fa = np.polyfit(u, za, 2)
+    fb = np.polyfit(u, zb, 2)
+    kink = _kink_between(fa, fb, lo, hi)
+    if kink is None or kink[1] < options.min_kink_deg:
+        return None
+    t = kink[0]
+    k = int(np.argmin(np.abs(u - t)))
+    if abs(ca[k] - cb[k]) > max_across:
+        return None
+    return t
+
+
+def _meeting(
+    a: FittedWire, b: FittedWire, leg: _Leg, u: float, options: SpanOptions, max_across: float
+) -> float | None:
+    """The bend (degrees, downward positive) where two pieces of a wire cut at ``u`` along
+    the leg meet within ``support_radius`` of it, or None when they do not meet there."""
+    if np.mean(leg.ends_u(a)) > np.mean(leg.ends_u(b)):
+        a, b = b, a
+    r = options.support_radius
+    grid = np.linspace(u - r, u + r, 33)
+
+    def at(w: FittedWire) -> tuple[F64, F64]:
+        s = (grid - float(leg.u(w.plane_origin_xy)[0])) / float(
+            w.plane_direction_xy @ leg.direction
+        )
+        p = w.points(s)
+        return leg.c(p[:, :2]), p[:, 2]
+
+    ca, za = at(a)
+    cb, zb = at(b)
+    kink = _kink_between(np.polyfit(grid, za, 2), np.polyfit(grid, zb, 2), u - r, u + r)
+    if kink is None:
+        return None
+    i = int(np.argmin(np.abs(grid - kink[0])))
+    if abs(ca[i] - cb[i]) > max_across:
+        return None
+    return kink[1]
+
+
+def _seen(views: Sequence, pts: F64) -> npt.NDArray[np.int64]:
+    """(N,) how many views see each point."""
+    return np.sum([v.project(pts)[2] for v in views], axis=0).astype(np.int64)
+
+
+def _cluster(values: F64, radius: float) -> list[I64]:
+    """Indices of ``values`` grouped where consecutive sorted values lie within ``radius``."""
+    if not len(values):
+        return []
+    order = np.argsort(values)
+    breaks = np.flatnonzero(np.diff(values[order]) > radius) + 1
+    return [g for g in np.split(order, breaks)]
+
+
+def _axial_diff_deg(a: float, b: float) -> float:
+    return abs((a - b + 90.0) % 180.0 - 90.0)
+
+
+def find_spans(
+    views: Sequence,
+    ground_height: Callable[[F64], F64],
+    wires: Sequence[FittedWire],
+    legs: Sequence[int],
+    corridors: Sequence[WireCorridor],
+    pts_in_world: F64,
+    options: SpanOptions | None = None,
+    wires_options: WiresOptions | None = None,
+) -> Spans:
+    """Find the supports, cut the wires at them, and say where each wire hangs.
+
+    Args:
+        views: the registered images (``project``), to tell a line's end from the survey's.
+        ground_height: (N, 2) plan points → (N,) ground heights.
+        wires: the fitted wires; ``legs[k]`` the corridor (index into ``corridors``) that
+            measured wire k.
+        pts_in_world: (N, 3) the points the wires' ``point_indices`` refer to.
+    """
+    options = options or SpanOptions()
+    wires_options = wires_options or WiresOptions()
+    axes = [_Leg(c) for c in corridors]
+    max_across = 2.5 * wires_options.inlier_distance
+    next_id = max((w.wire_id for w in wires), default=-1) + 1
+
+    # 1. Kinks: a wire measured across a support is cut there (and its pieces looked at
+    # again: a wire may run across two).
+    out: list[FittedWire] = []
+    source: list[int] = []
+    out_legs: list[int] = []
+    cands: list[_Candidate] = []
+    cut_ids: set[int] = set()
+    for k, w in enumerate(wires):
+        leg = axes[legs[k]]
+        todo = [w]
+        while todo:
+            piece = todo.pop()
+            t = find_kink(piece, pts_in_world, options)
+            cut = None if t is None else _cut(piece, t, pts_in_world, leg, wires_options, next_id)
+            if t is None or cut is None:
+                out.append(piece)
+                source.append(k)
+                out_legs.append(legs[k])
+                continue
+            first, second = cut
+            cut_ids.update((first.wire_id, second.wire_id))
+            next_id += 1
+            u = float(leg.u(piece.points(np.array([t]))[:, :2])[0])
+            cands.append(_Candidate(legs[k], u, "kink", {first.wire_id, second.wire_id}))
+            logger.info(
+                "spans: wire %d bends at %.1f along it (a support): cut into %d and %d",
+                piece.wire_id,
+                t - piece.s_range[0],
+                first.wire_id,
+                second.wire_id,
+            )
+            todo += [first, second]
+
+    # 2. Pieces meeting across a gap at a support.
+    for li, leg in enumerate(axes):
+        idx = [k for k in range(len(out)) if out_legs[k] == li]
+        for i in idx:
+            for j in idx:
+                if i == j:
+                    continue
+                t = _pieces_meet(out[i], out[j], leg, options, max_across)
+                if t is not None:
+                    cands.append(
+                        _Candidate(li, t, "pieces meeting", {out[i].wire_id, out[j].wire_id})
+                    )
+
+    # One support per cluster of kinks and meetings along a leg.
+    supports_u: list[tuple[int, float, str, set[int]]] = []
+    for li in range(len(axes)):
+        mine = [c for c in cands if c.leg == li]
+        for g in _cluster(np.array([c.u for c in mine]), options.support_radius):
+            members = [mine[i] for i in g]
+            kinds = {c.found_by for c in members}
+            supports_u.append(
+                (
+                    li,
+                    float(np.median([c.u for c in members])),
+                    "kink" if "kink" in kinds else "pieces meeting",
+                    set().union(*(c.wire_ids for c in members)),
+                )
+            )
+
+    # 3. Wires ending together where the images see past them: the line ends there.
+    for li, leg in enumerate(axes):
+        idx = [k for k in range(len(out)) if out_legs[k] == li]
+        if not idx:
+            continue
+        ends = np.array([leg.ends_u(out[k]) for k in idx])
+        for side, sign in ((0, -1.0), (1, 1.0)):
+            for g in _cluster(ends[:, side], options.support_radius):
+                if len(g) < 2:
+                    continue
+                u_end = float(ends[g, side].max() if sign > 0 else ends[g, side].min())
+                # A wire carrying on past it: not where the line ends.
+                further = ends[:, side] * sign > u_end * sign + options.support_radius
+                if further.any():
+                    continue
+                if any(s_li == li and abs(u - u_end) <= 2 * options.support_radius
+                       for s_li, u, _, _ in supports_u):  # fmt: skip
+                    continue
+                z = float(
+                    np.median(
+                        [out[idx[i]].points(np.array(out[idx[i]].s_range))[:, 2].mean() for i in g]
+                    )
+                )
+                c_mid = float(np.median([leg.c(out[idx[i]].plane_origin_xy)[0] for i in g]))
+                past = np.array([np.r_[leg.xy(u_end + sign * d, c_mid), z] for d in BEYOND_M])
+                if (_seen(views, past) >= MIN_VIEWS_BEYOND).all():
+                    supports_u.append((li, u_end, "wires ending", {out[idx[i]].wire_id for i in g}))
+
+    # 4. Cut every wire at each support of its leg that it runs across.
+    changed = True
+    while changed:
+        changed = False
+        for k in range(len(out)):
+            li = out_legs[k]
+            leg = axes[li]
+            lo, hi = leg.ends_u(out[k])
+            for s_li, u, _, _ in supports_u:
+                if s_li != li or not (lo + options.min_piece_m < u < hi - options.min_piece_m):
+                    continue
+                cut = _cut(out[k], leg.s_of(out[k], u), pts_in_world, leg, wires_options, next_id)
+                if cut is None:
+                    continue
+                next_id += 1
+                # A conductor hangs from the support: its two pieces meet there in a bend.
+                # Running smoothly through it, the wire is no conductor of this line (a
+                # false pairing); a piece that does not meet the other there is a tail the
+                # curve took past the support (points of another pairing).
+                meet = _meeting(cut[0], cut[1], leg, u, options, max_across)
+                keep = list(cut)
+                if meet is None:
+                    keep = [max(cut, key=lambda w: len(w.point_indices))]
+                elif meet < options.min_kink_deg:
+                    keep = []
+                if len(keep) < 2:
+                    logger.info(
+                        "spans: wire %d %s the support at %.1f along its line: %s",
+                        out[k].wire_id,
+                        "runs straight through" if not keep else "has a tail past",
+                        u,
+                        "left out (a false pairing)" if not keep else "the tail left out",
+                    )
+                cut_ids.update(w.wire_id for w in keep)
+                out[k : k + 1] = keep
+                source[k : k + 1] = [source[k]] * len(keep)
+                out_legs[k : k + 1] = [li] * len(keep)
+                changed = True
+                break
+            if changed:
+                break
+
+    # A piece cut off at a support may lie on the next span's wire of the same conductor
+    # (one curve took the points of both near the support, where they run close): it is
+    # that wire's, not a wire of its own.
+    out, source, out_legs = _absorb_cut_pieces(
+        out, source, out_legs, cut_ids, pts_in_world, axes, wires_options
+    )
+
+    # 5. Supports of two legs at one place: an angle support, and the legs one line.
+    located = []  # (legs, xy, found_by, wire ids)
+    for li, u, how, ids in supports_u:
+        leg = axes[li]
+        near = [
+            k for k in range(len(out)) if out_legs[k] == li and _touches(out[k], leg, u, options)
+        ]
+        cs = [float(leg.c(out[k].points(np.array([leg.s_of(out[k], u)]))[:, :2])[0]) for k in near]
+        c_mid = 0.5 * (min(cs) + max(cs)) if cs else 0.0
+        located.append(([li], leg.xy(u, c_mid), how, set(ids) | {out[k].wire_id for k in near}))
+    merged: list[tuple[list[int], F64, str, set[int]]] = []
+    for item in located:
+        for m in merged:
+            if np.linalg.norm(m[1] - item[1]) <= 2 * options.support_radius and set(m[0]) != set(
+                item[0]
+            ):
+                m[0].extend(item[0])
+                m[3].update(item[3])
+                m[1][:] = 0.5 * (m[1] + item[1])
+                break
+        else:
+            merged.append((list(item[0]), item[1].copy(), item[2], set(item[3])))
+
+    # Lines: legs joined at a support they share.
+    n_legs = len(axes)
+    rows, cols = list(range(n_legs)), list(range(n_legs))
+    for m in merged:
+        rows += [m[0][0]] * len(m[0])
+        cols += m[0]
+    graph = coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(n_legs, n_legs))
+    _, line_of_leg = connected_components(graph, directed=False)
+    # Lines numbered in the order of their first leg (the main line first).
+    line_ids = {int(lab): n + 1 for n, lab in enumerate(dict.fromkeys(line_of_leg.tolist()))}
+
+    # 6. Chainage along each line, spans between its supports, attachments, conductors.
+    chainage = _chainages(axes, merged, line_of_leg, out, out_legs)
+    sup_ch = [chainage[m[0][0]](m[1]) for m in merged]
+    order = sorted(
+        range(len(merged)), key=lambda i: (line_ids[int(line_of_leg[merged[i][0][0]])], sup_ch[i])
+    )
+    supports_out: list[LineSupport] = []
+    for new_id, mi in enumerate(order):
+        legs_m, xy, how, _ = merged[mi]
+        turn = max(
+            (
+                _axial_diff_deg(axes[a].azimuth_deg, axes[b].azimuth_deg)
+                for a in legs_m
+                for b in legs_m
+            ),
+            default=0.0,
+        )
+        kind = (
+            "angle" if len(set(legs_m)) > 1 else ("end" if how == "wires ending" else "suspension")
+        )
+        supports_out.append(
+            LineSupport(
+                support_id=new_id,
+                line=line_ids[int(line_of_leg[legs_m[0]])],
+                kind=kind,
+                position=np.r_[xy, float(ground_height(xy[None])[0])],
+                top_z=float("nan"),
+                turn_deg=float(turn),
+                wire_ids=(),
+                found_by=how,
+            )
+        )
+    # Each support's cross-arm in plan: across its leg, or along the bisector of the turn
+    # at an angle support (each conductor keeps its offset from the line on both legs).
+    arms = []
+    for mi in order:
+        ds = [axes[a].direction for a in dict.fromkeys(merged[mi][0])]
+        d = ds[0] + sum((e if e @ ds[0] > 0 else -e) for e in ds[1:])
+        d = d / np.linalg.norm(d)
+        arms.append(np.array([d[1], -d[0]]))
+    placement: list[WireSpan] = []
+    attached: dict[int, list[tuple[int, F64]]] = {}
+    spans_key: list[tuple[int, int]] = []
+    for k, w in enumerate(out):
+        li = out_legs[k]
+        line = line_ids[int(line_of_leg[li])]
+        ends_xy = w.points(np.array(w.s_range))[:, :2]
+        ch = sorted(chainage[li](xy) for xy in ends_xy)
+        on_line = [
+            (sup_ch[mi], new_id)
+            for new_id, mi in enumerate(order)
+            if supports_out[new_id].line == line
+        ]
+        mid = 0.5 * (ch[0] + ch[1])
+        before = [(c, i) for c, i in on_line if c <= mid]
+        after = [(c, i) for c, i in on_line if c > mid]
+        bounds = []
+        if before and ch[0] - max(before)[0] <= options.max_meeting_gap:
+            bounds.append(max(before)[1])
+        if after and min(after)[0] - ch[1] <= options.max_meeting_gap:
+            bounds.append(min(after)[1])
+        spans_key.append((line, len(before)))
+        s_lo, s_hi = w.s_range
+        at_end: list[int | None] = [None, None]
+        for sid in bounds:
+            s_att = _s_on_arm(w, supports_out[sid].position[:2], arms[sid])
+            if s_att is None:
+                continue
+            side = 0 if s_att < 0.5 * (w.s_range[0] + w.s_range[1]) else 1
+            s_lo, s_hi = (min(s_lo, s_att), s_hi) if side == 0 else (s_lo, max(s_hi, s_att))
+            at_end[side] = sid
+            attached.setdefault(sid, []).append((k, w.points(np.array([s_att]))[0]))
+        out[k] = dataclasses.replace(w, s_range=(float(s_lo), float(s_hi)))
+        placement.append(WireSpan(line=line, span=0, supports=(at_end[0], at_end[1]), conductor=-1))
+    # Spans numbered from 1 along each line, without holes.
+    numbers = {
+        key: n + 1
+        for line in sorted(line_ids.values())
+        for n, key in enumerate(sorted({sk for sk in spans_key if sk[0] == line}))
+    }
+    for sid, att in attached.items():
+        supports_out[sid] = dataclasses.replace(
+            supports_out[sid],
+            top_z=float(max(p[2] for _, p in att)),
+            wire_ids=tuple(sorted(out[k].wire_id for k, _ in att)),
+            reach_m=float(max(np.hypot(*(p[:2] - supports_out[sid].position[:2])) for _, p in att)),
+        )
+    placement = [
+        dataclasses.replace(p, span=numbers[sk]) for p, sk in zip(placement, spans_key, strict=True)
+    ]
+    conductor = _conductors(out, placement, attached, options.same_conductor_m)
+    placement = [
+        dataclasses.replace(p, conductor=c) for p, c in zip(placement, conductor, strict=True)
+    ]
+    if supports_out:
+        logger.info(
+            "spans: %d line(s), %d support(s) (%s), %d wires in %d spans",
+            len(line_ids),
+            len(supports_out),
+            ", ".join(f"{s.kind} by {s.found_by}" for s in supports_out),
+            len(out),
+            len(numbers),
+        )
+    return Spans(out, placement, supports_out, source, out_legs)
+
+
+def _chainages(
+    axes: list[_Leg],
+    merged: list[tuple[list[int], F64, str, set[int]]],
+    line_of_leg: I64,
+    wires: list[FittedWire],
+    legs: list[int],
+) -> list[Callable[[F64], float]]:
+    """Per leg, plan point → distance along its line: legs chained through the supports
+    they share, each walked away from the one before (a line's first leg along its u)."""
+    shared: dict[int, dict[int, F64]] = {li: {} for li in range(len(axes))}
+    for m in merged:
+        for a in m[0]:
+            for b in m[0]:
+                if a != b:
+                    shared[a][b] = m[1]
+    funcs: list[Callable[[F64], float] | None] = [None] * len(axes)
+
+    def make(leg: _Leg, base: float, u_ref: float, sign: float) -> Callable[[F64], float]:
+        return lambda xy: base + sign * (float(leg.u(xy)[0]) - u_ref)
+
+    for start in range(len(axes)):
+        if funcs[start] is not None:
+            continue
+        # Start the line at a leg with one neighbour (its end), else at this one.
+        line = [li for li in range(len(axes)) if line_of_leg[li] == line_of_leg[start]]
+        first = next((li for li in line if len(shared[li]) <= 1), start)
+        funcs[first] = make(axes[first], 0.0, 0.0, 1.0)
+        todo = [first]
+        while todo:
+            li = todo.pop()
+            here = funcs[li]
+            assert here is not None
+            for nb, xy in shared[li].items():
+                if funcs[nb] is not None:
+                    continue
+                leg = axes[nb]
+                u_at = float(leg.u(xy)[0])
+                us = [
+                    float(np.mean(leg.ends_u(w)))
+                    for w, g in zip(wires, legs, strict=True)
+                    if g == nb
+                ]
+                sign = 1.0 if not us or np.median(us) >= u_at else -1.0
+                funcs[nb] = make(leg, here(xy), u_at, sign)
+                todo.append(nb)
+    return [f if f is not None else make(axes[i], 0.0, 0.0, 1.0) for i, f in enumerate(funcs)]
+
+
+SUPPORT_COLUMNS = (
+    "support_id", "line", "kind", "x", "y", "ground_z", "top_z", "height_m", "turn_deg",
+    "found_by", "wires",
+)  # fmt: skip
+SPAN_COLUMNS = ("line", "span", "first_support", "last_support", "conductor")
+
+
+def supports_csv(
+    supports: Sequence[LineSupport], convert: Callable[[F64], F64] | None = None
+) -> str:
+    """One row per support (:data:`SUPPORT_COLUMNS`), millimetre precision."""
+    rows = [",".join(SUPPORT_COLUMNS)]
+    for sup in supports:
+        d = sup.to_json(convert)
+        x, y, z = d["position"]
+        rows.append(
+            ",".join(
+                [str(d["id"]), str(d["line"]), d["kind"]]
+                + [f"{v:.3f}" for v in (x, y, z, d["top_z"], d["height_m"], d["turn_deg"])]
+                + [d["found_by"], " ".join(str(w) for w in d["wires"])]
+            )
+        )
+    return "\n".join(rows) + "\n"
+
+
+def _absorb_cut_pieces(
+    wires: list[FittedWire],
+    source: list[int],
+    legs: list[int],
+    cut_ids: set[int],
+    pts_in_world: F64,
+    axes: list[_Leg],
+    options: WiresOptions,
+) -> tuple[list[FittedWire], list[int], list[int]]:
+    """Pieces (``cut_ids``) whose points mostly lie on another wire of their leg, between
+    its ends and within twice the inlier distance of it, given to that wire (refitted)."""
+    gone: set[int] = set()
+    for k, piece in enumerate(wires):
+        if piece.wire_id not in cut_ids:
+            continue
+        p = pts_in_world[piece.point_indices]
+        best, share = -1, 0.5
+        for j, other in enumerate(wires):
+            if j == k or j in gone or legs[j] != legs[k]:
+                continue
+            if len(other.point_indices) <= len(piece.point_indices):
+                continue
+            s_other = other.plane_coords(p)[0]
+            lo, hi = other.s_range[0] - 1.0, other.s_range[1] + 1.0
+            within = (s_other >= lo) & (s_other <= hi)
+            on = float(np.mean(within & (other.distance(p) <= 2 * options.inlier_distance)))
+            if on >= share:
+                best, share = j, on
+        if best < 0:
+            continue
+        both = np.union1d(wires[best].point_indices, piece.point_indices)
+        grown = refit(wires[best], pts_in_world, both, axes[legs[best]].direction, options)
+        if grown is wires[best]:
+            continue
+        logger.info(
+            "spans: piece %d (%d points) lies on wire %d: joined to it",
+            piece.wire_id,
+            len(piece.point_indices),
+            wires[best].wire_id,
+        )
+        wires[best] = grown
+        gone.add(k)
+    keep = [k for k in range(len(wires)) if k not in gone]
+    return [wires[k] for k in keep], [source[k] for k in keep], [legs[k] for k in keep]
+
+
+def _s_on_arm(w: FittedWire, xy: F64, arm: F64) -> float | None:
+    """Where ``w``'s plane crosses the cross-arm line through ``xy`` (position along the
+    plane), or None when they run parallel."""
+    a = np.c_[w.plane_direction_xy, -arm]
+    if abs(np.linalg.det(a)) < 1e-6:
+        return None
+    s, _ = np.linalg.solve(a, xy - w.plane_origin_xy)
+    return float(s)
+
+
+def _touches(w: FittedWire, leg: _Leg, u: float, options: SpanOptions) -> bool:
+    lo, hi = leg.ends_u(w)
+    return lo - options.max_meeting_gap / 2 <= u <= hi + options.max_meeting_gap / 2 and (
+        abs(u - lo) <= options.max_meeting_gap / 2 or abs(u - hi) <= options.max_meeting_gap / 2
+    )
+
+
+def _cut(
+    wire: FittedWire,
+    s_cut: float,
+    pts_in_world: F64,
+    leg: _Leg,
+    options: WiresOptions,
+    new_id: int,
+) -> tuple[FittedWire, FittedWire] | None:
+    """``wire`` cut at ``s_cut`` along its plane: two wires refitted to the points on
+    either side (the second with ``new_id``), or None when a side holds no wire."""
+    s, _, _ = wire.plane_coords(pts_in_world[wire.point_indices])
+    left, right = wire.point_indices[s < s_cut], wire.point_indices[s >= s_cut]
+    if len(left) < options.min_points or len(right) < options.min_points:
+        return None
+    a = refit(wire, pts_in_world, left, leg.direction, options)
+    b = refit(wire, pts_in_world, right, leg.direction, options)
+    if a is wire or b is wire:
+        return None
+    return a, dataclasses.replace(b, wire_id=new_id)
+
+
+def _conductors(
+    wires: list[FittedWire],
+    placement: list[WireSpan],
+    attached: dict[int, list[tuple[int, F64]]],
+    same_m: float,
+) -> list[int]:
+    """One number per conductor: wires of neighbouring spans whose attachments at a shared
+    support lie within ``same_m`` of each other (mutual nearest) are one conductor."""
+    n = len(wires)
+    rows, cols = list(range(n)), list(range(n))
+    for att in attached.values():
+        if len(att) < 2:
+            continue
+        ks = [k for k, _ in att]
+        p = np.array([q for _, q in att])
+        d = np.linalg.norm(p[:, None] - p[None], axis=2)
+        spans = np.array([placement[k].span for k in ks])
+        d[spans[:, None] == spans[None]] = np.inf
+        for i in range(len(ks)):
+            j = int(np.argmin(d[i]))
+            if d[i, j] <= same_m and int(np.argmin(d[j])) == i:
+                rows.append(ks[i])
+                cols.append(ks[j])
+    graph = coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(n, n))
+    _, lab = connected_components(graph, directed=False)
+    first = {int(v): i for i, v in enumerate(dict.fromkeys(lab.tolist()))}
+    return [first[int(v)] for v in lab]

@@ -1,0 +1,225 @@
+"""Lines, spans and supports found from the wires (exact catenaries between known towers)."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from colmap_powerline.pairs import WireCorridor
+from colmap_powerline.spans import SpanOptions, find_kink, find_spans
+from colmap_powerline.wires import FittedWire, WiresOptions, refit
+
+
+class _Sees:
+    """A stand-in view that sees every point within ``reach`` of the origin in plan."""
+
+    def __init__(self, reach: float) -> None:
+        self.reach = reach
+
+    def project(self, pts: np.ndarray):
+        inside = np.hypot(pts[:, 0], pts[:, 1]) <= self.reach
+        return np.zeros((len(pts), 2)), np.ones(len(pts)), inside
+
+
+def _flat(xy: np.ndarray) -> np.ndarray:
+    return np.zeros(len(xy))
+
+
+def _corridor(azimuth_deg: float, centre=(0.0, 0.0)) -> WireCorridor:
+    return WireCorridor(
+        azimuth_deg=azimuth_deg, centre_xy=np.array(centre), half_width=30.0,
+        wires_half_width=10.0, s_range=(-200.0, 200.0), height=30.0,
+        height_range=(20.0, 45.0), from_images=True, measured=True,
+    )  # fmt: skip
+
+
+def _span_points(a_xyz, b_xyz, a_cat: float, rng, step=0.05, noise=0.02, keep=(2.0, 2.0)):
+    """Points on the catenary of parameter ``a_cat`` hanging from a_xyz to b_xyz, every
+    ``step``, ``keep`` metres short of each attachment (the insulators' hardware)."""
+    a_xyz, b_xyz = np.asarray(a_xyz, float), np.asarray(b_xyz, float)
+    d = b_xyz[:2] - a_xyz[:2]
+    length = float(np.hypot(*d))
+    u = d / length
+    # z(s) = z0 + a(cosh((s - s0)/a) - 1) through both ends: solve s0 from the height step.
+    h = b_xyz[2] - a_xyz[2]
+    s0 = length / 2 - a_cat * np.arcsinh(h / (2 * a_cat * np.sinh(length / (2 * a_cat))))
+    z0 = a_xyz[2] - a_cat * (np.cosh(s0 / a_cat) - 1)
+    s = np.arange(keep[0], length - keep[1], step)
+    z = z0 + a_cat * (np.cosh((s - s0) / a_cat) - 1)
+    pts = np.c_[a_xyz[:2] + s[:, None] * u, z]
+    return pts + rng.normal(0, noise, pts.shape)
+
+
+def _wire(pts: np.ndarray, idx: np.ndarray, azimuth_xy: np.ndarray, wire_id: int) -> FittedWire:
+    w0 = FittedWire(wire_id, np.zeros(2), azimuth_xy, 1e3, 0.0, 0.0, (0.0, 1.0), idx, 0.0)
+    w = refit(w0, pts, idx, azimuth_xy, WiresOptions())
+    assert w is not w0
+    # All its points (one curve through a support leaves some of them by more than the
+    # inlier distance; the pipeline's pieces hold them).
+    lo, hi = w.plane_coords(pts[idx])[0][[0, -1]]
+    return dataclasses.replace(w, point_indices=idx, s_range=(float(lo), float(hi)))
+
+
+def _towers(turn_deg: float = 0.0):
+    """Five towers 90 m apart along +x, the line turning by ``turn_deg`` at the third."""
+    xy = [np.array([-180.0, 0.0]), np.array([-90.0, 0.0]), np.array([0.0, 0.0])]
+    t = np.deg2rad(turn_deg)
+    leg2 = np.array([np.cos(t), np.sin(t)])
+    xy += [xy[2] + 90.0 * leg2, xy[2] + 180.0 * leg2]
+    return xy, leg2
+
+
+# Conductors: (offset across the line, attachment height).
+PHASES = [(-5.0, 30.0), (5.0, 30.0), (-5.0, 35.0), (5.0, 35.0)]
+
+
+def _line(rng, turn_deg: float, join_first_two: bool):
+    """Every conductor of every span as points; span 1 and 2 of each conductor measured as
+    one wire when ``join_first_two`` (measured across the support between them)."""
+    towers, leg2 = _towers(turn_deg)
+    pts, idx_of = [], []
+    n = 0
+    for c, z in PHASES:
+        for k in range(4):
+            a, b = towers[k], towers[k + 1]
+            d = (b - a) / np.linalg.norm(b - a)
+            normal = np.array([d[1], -d[0]])
+            # At the angle tower the cross-arm bisects the turn: the same point for both legs.
+            na = normal if k != 2 else _bisector_normal(leg2)
+            nb = normal if k != 1 else _bisector_normal(leg2)
+            p = _span_points(np.r_[a + c * na, z], np.r_[b + c * nb, z], 900.0, rng)
+            pts.append(p)
+            idx_of.append(np.arange(n, n + len(p)))
+            n += len(p)
+    pts = np.concatenate(pts)
+    wires, wire_legs = [], []
+    az = [np.array([1.0, 0.0]), leg2]
+    for j in range(len(PHASES)):
+        spans = idx_of[4 * j : 4 * j + 4]
+        groups = [np.r_[spans[0], spans[1]], spans[2], spans[3]] if join_first_two else spans
+        for g in groups:
+            leg = 0 if np.mean(pts[g, 0]) < 0 else 1
+            wires.append(_wire(pts, g, az[leg], len(wires)))
+            wire_legs.append(leg)
+    return pts, wires, wire_legs, towers
+
+
+def _bisector_normal(leg2: np.ndarray) -> np.ndarray:
+    d = np.array([1.0, 0.0]) + leg2
+    d /= np.linalg.norm(d)
+    n = np.array([d[1], -d[0]])
+    return n / float(n @ np.array([0.0, -1.0]))  # offsets kept across each leg
+
+
+def test_a_kink_is_found_where_a_wire_passes_a_support():
+    rng = np.random.default_rng(0)
+    a = _span_points([-90, 0, 30], [0, 0, 30], 900.0, rng, keep=(2.0, 0.0))
+    b = _span_points([0, 0, 30], [90, 0, 29], 900.0, rng, keep=(0.0, 2.0))
+    pts = np.r_[a, b]
+    w = _wire(pts, np.arange(len(pts)), np.array([1.0, 0.0]), 0)
+    t = find_kink(w, pts, SpanOptions())
+    assert t is not None
+    assert abs(float(w.points(np.array([t]))[0, 0])) < 0.5
+    # One span: no kink anywhere.
+    w1 = _wire(a, np.arange(len(a)), np.array([1.0, 0.0]), 0)
+    assert find_kink(w1, a, SpanOptions()) is None
+
+
+@pytest.mark.parametrize("turn_deg", [0.0, 25.0])
+def test_supports_spans_and_conductors_of_a_line(turn_deg):
+    rng = np.random.default_rng(1)
+    pts, wires, legs, towers = _line(rng, turn_deg, join_first_two=True)
+    corridors = [_corridor(90.0), _corridor(90.0 - turn_deg)]
+    if turn_deg == 0.0:  # a straight line is one corridor
+        corridors, legs = corridors[:1], [0] * len(legs)
+    views = [_Sees(reach=220.0)] * 3  # the images see 40 m past the end towers
+    sp = find_spans(views, _flat, wires, legs, corridors, pts)
+    # Five supports where the towers are, on one line: ends, suspension, angle. Inner ones
+    # where the curves meet (within 0.5 m); the line's ends where its wires end, short of
+    # the towers by the 2 m the measurements stop short of them.
+    assert len(sp.supports) == 5
+    found = np.array([s.position[:2] for s in sp.supports])
+    err = [np.min(np.linalg.norm(found - t, axis=1)) for t in towers]
+    assert max(err[1:4]) < 0.5 and max(err[0], err[4]) < 2.5
+    kinds = [s.kind for s in sp.supports]
+    middle = "angle" if turn_deg else "suspension"
+    assert kinds == ["end", "suspension", middle, "suspension", "end"]
+    assert {s.line for s in sp.supports} == {1}
+    for s in sp.supports:
+        assert s.top_z == pytest.approx(35.0, abs=0.1)
+    if turn_deg:
+        angle = next(s for s in sp.supports if s.kind == "angle")
+        assert angle.turn_deg == pytest.approx(turn_deg, abs=1.0)
+    # The wire measured across the support at x = -90 is cut there: 4 spans x 4 conductors.
+    assert len(sp.wires) == 16
+    spans = {}
+    for w, p in zip(sp.wires, sp.placement, strict=True):
+        ends = w.points(np.array(w.s_range))
+        # Each wire reaches its two attachments (the insulators' tips), within 5 cm.
+        for e in ends:
+            assert np.min([np.hypot(*(e[:2] - t)) for t in towers]) < 5.5 + 0.05
+        assert None not in p.supports
+        spans.setdefault(p.span, []).append(p)
+    assert sorted(spans) == [1, 2, 3, 4]
+    # Each conductor keeps its number from span to span: four conductors, one per span.
+    by_conductor = {}
+    for p in sp.placement:
+        by_conductor.setdefault(p.conductor, []).append(p.span)
+    assert len(by_conductor) == 4
+    assert all(sorted(v) == [1, 2, 3, 4] for v in by_conductor.values())
+
+
+def test_wires_running_out_of_the_images_end_at_no_support():
+    rng = np.random.default_rng(2)
+    pts, wires, legs, towers = _line(rng, 0.0, join_first_two=False)
+    # The images see only up to 185 m from the centre: the end towers' wires run out.
+    sp = find_spans([_Sees(reach=181.0)] * 3, _flat, wires, [0] * len(legs), [_corridor(90.0)], pts)
+    kinds = sorted(s.kind for s in sp.supports)
+    assert kinds == ["suspension"] * 3
+
+
+def test_lines_spans_and_supports_are_written(tmp_path):
+    import csv
+    import json
+
+    from colmap_powerline.clearance import measure_wire
+    from colmap_powerline.export import export_results
+    from colmap_powerline.scene import GroundModel
+
+    rng = np.random.default_rng(3)
+    pts, wires, legs, _ = _line(rng, 25.0, join_first_two=False)
+    sp = find_spans([_Sees(220.0)] * 3, _flat, wires, legs, [_corridor(90.0), _corridor(65.0)], pts)
+    x, y = np.meshgrid(np.arange(-250, 251, 5.0), np.arange(-150, 151, 5.0))
+    ground = GroundModel(np.c_[x.ravel(), y.ravel()], np.zeros(x.size), 5.0)
+    labels = np.full(len(pts), -1)
+    for w in sp.wires:
+        labels[w.point_indices] = w.wire_id
+    export_results(
+        tmp_path, wires=sp.wires, points=pts, labels=labels, primitives=None,
+        metadata={"input_model": "test"}, measures=[measure_wire(w, ground) for w in sp.wires],
+        placement=sp.placement, line_supports=sp.supports,
+        to_crs=(lambda xyz: xyz + [1000.0, 2000.0, 0.0], "shifted"),
+    )  # fmt: skip
+    doc = json.loads((tmp_path / "wires.json").read_text())
+    assert [s["kind"] for s in doc["supports"]] == [
+        "end", "suspension", "angle", "suspension", "end"
+    ]  # fmt: skip
+    assert doc["supports"][2]["turn_deg"] == pytest.approx(25.0, abs=1.0)
+    assert doc["supports"][1]["position"][0] == pytest.approx(1000.0 - 90.0, abs=0.5)
+    assert doc["supports"][1]["height_m"] == pytest.approx(35.0, abs=0.1)
+    for w in doc["wires"]:
+        assert w["line"] == 1 and 1 <= w["span"] <= 4 and None not in w["support_ids"]
+        # Sag from the chord between the attachments: the level 90 m span's true sag (the
+        # end spans' only to where the wires end, short of the end towers).
+        if w["span"] == 2:
+            assert w["measures"]["sag_max_m"] == pytest.approx(
+                900.0 * (np.cosh(45.0 / 900.0) - 1.0), abs=0.03
+            )
+    rows = list(csv.DictReader((tmp_path / "supports.csv").open()))
+    assert [r["kind"] for r in rows] == [s["kind"] for s in doc["supports"]]
+    assert float(rows[1]["x"]) == pytest.approx(910.0, abs=0.5)
+    table = list(csv.DictReader((tmp_path / "wires.csv").open()))
+    assert {(r["line"], r["span"]) for r in table} == {("1", str(k)) for k in (1, 2, 3, 4)}
+    assert len({r["conductor"] for r in table}) == len(PHASES)
