@@ -16,7 +16,7 @@ from typing import Any
 from .errors import InputError
 from .georef import GeoreferenceOptions
 from .sfm import SfmOptions
-from .synthetic import Background, FlightPattern, SyntheticSpanOptions
+from .synthetic import Background, FlightPattern, Layout, SyntheticSpanOptions
 
 logger = logging.getLogger("colmap_powerline")
 
@@ -46,6 +46,17 @@ def _add_synthetic_flags(p: argparse.ArgumentParser, default_scale: float) -> No
         default=SyntheticSpanOptions.grid_angle_deg,
         help="flight grid: angle between the strips and the line (default %(default)s)",
     )
+    p.add_argument(
+        "--layout",
+        type=Layout,
+        choices=list(Layout),
+        default=Layout.SPAN,
+        help="span: one span between two towers; angle: two spans turning by --turn_deg at "
+        "an angle tower (flights corridor, along4: strips along each leg); crossing: the span "
+        "and a pole line crossing it at --crossing_deg (flight grid) (default %(default)s)",
+    )
+    p.add_argument("--turn_deg", type=float, default=SyntheticSpanOptions.turn_deg)
+    p.add_argument("--crossing_deg", type=float, default=SyntheticSpanOptions.crossing_deg)
     p.add_argument("--seed", type=int, default=0)
 
 
@@ -55,6 +66,9 @@ def _synthetic_options(args: argparse.Namespace) -> SyntheticSpanOptions:
         background=args.background,
         flight=args.flight,
         grid_angle_deg=args.grid_angle_deg,
+        layout=args.layout,
+        turn_deg=args.turn_deg,
+        crossing_deg=args.crossing_deg,
         seed=args.seed,
         show_progress=not args.quiet,
     )

@@ -44,7 +44,7 @@ from .rectify import RectifiedPair, RectifyOptions, rectify_pair
 from .report import write_report
 from .scene import Scene, SceneImage, load_scene, read_image, resolve_inputs
 from .sfm import SfmOptions, run_sfm
-from .spans import LineSupport, SpanOptions, WireSpan, find_spans
+from .spans import LineSupport, SpanOptions, WireSpan, cut_at_kinks, find_spans
 from .support import (
     SupportOptions,
     WireSupport,
@@ -380,11 +380,11 @@ def probe_corridors(scene: Scene, options: ReconstructionOptions) -> list[WireCo
     def best() -> _Probe | None:
         return max(probes, key=lambda p: p.length) if probes else None
 
-    def probe_all(found: DirectionCandidates, ks: Sequence[int]) -> None:
+    def probe_all(found: DirectionCandidates, ks: Sequence[int], bands: int = 2) -> None:
         for k in ks:
             for prov in provisional_corridors(
                 scene, found, found.azimuths_deg[k], options.pairs, heights
-            ):
+            )[:bands]:
                 probe, n = _probe(scene, prov, options)
                 decoded.extend(n)
                 if probe is not None:
@@ -406,6 +406,11 @@ def probe_corridors(scene: Scene, options: ReconstructionOptions) -> list[WireCo
         decoded += [p for p in wide.decoded if p not in decoded]
         tol = options.pairs.candidate_tolerance_deg
         probed = [cands.azimuths_deg[k] for k in order]
+        if not lost and first is not None:
+            # Another line runs in a direction of its own: one near the found line's can
+            # only measure that line again.
+            tol = max(tol, options.pairs.line_tolerance_deg)
+            probed.append(first.azimuth_deg)
         fresh = [
             int(k)
             for k in np.argsort(wide.weights)[::-1]
@@ -420,7 +425,9 @@ def probe_corridors(scene: Scene, options: ReconstructionOptions) -> list[WireCo
             len(wide.analysed),
             [round(wide.azimuths_deg[k], 1) for k in fresh],
         )
-        probe_all(wide, fresh)
+        # Looking for more lines, the densest band of each direction is enough: a line's
+        # wires pile up there (the wider band is for a main line a road outdoes).
+        probe_all(wide, fresh, options.pairs.probe_bands if lost else 1)
     first = best()
     if first is None:
         azimuth = cands.azimuths_deg[int(np.argmax(cands.weights))]
@@ -611,6 +618,7 @@ def reconstruct(
         verified.pts_in_world,
         options.spans,
         options.wires,
+        options.verify.crossing_offset,
     )
     wires, supports = spans.wires, [supports[k] for k in spans.source]
     timings["spans"] = time.perf_counter() - t0
@@ -779,6 +787,11 @@ def reconstruct_corridor(
 
     t0 = time.perf_counter()
     candidates = split_wires(verified.pts_in_world, corridor.azimuth_deg, options.wires)
+    # A wire chained across a support is two: one curve through both spans leaves each by
+    # decimetres and would be judged wrongly as a whole (the Seneca neutral across a pole).
+    candidates = cut_at_kinks(
+        candidates, verified.pts_in_world, corridor.direction_xy, options.spans, options.wires
+    )
     _add_time(timings, "wires", t0)
     t0 = time.perf_counter()
     index_of = {view.name: k for k, view in enumerate(scene.images)}

@@ -307,7 +307,8 @@ def _supports_table(result: ReconstructionResult, units: str) -> str:
         "there; <i>pieces meeting</i>, one conductor's curves in the two spans meet there; "
         "<i>wires ending</i>, the wires end together where the images see past them (the "
         "position is where the measurements end, short of the tower by its insulators at "
-        "most).</p>"
+        "most); <i>spans crossing</i>, an angle support: where each conductor's spans on "
+        "the two legs cross in plan.</p>"
     )
 
 

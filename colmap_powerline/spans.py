@@ -33,12 +33,15 @@ import logging
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
+import cv2
 import numpy as np
 import numpy.typing as npt
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
 from .pairs import WireCorridor
+from .scene import read_image
+from .support import _strips
 from .wires import FittedWire, WiresOptions, refit
 
 logger = logging.getLogger(__name__)
@@ -97,7 +100,8 @@ class LineSupport:
         top_z: the height of its highest attachment (model frame).
         turn_deg: the line's change of direction there.
         wire_ids: the wires attached to it.
-        found_by: ``kink``, ``pieces meeting`` or ``wires ending``.
+        found_by: ``kink``, ``pieces meeting``, ``wires ending`` or (an angle support)
+            ``spans crossing``: where each conductor's two spans' vertical planes cross.
     """
 
     support_id: int
@@ -174,6 +178,7 @@ class _Leg:
         self.direction = corridor.direction_xy
         self.normal = corridor.normal_xy
         self.azimuth_deg = corridor.azimuth_deg
+        self.extent = corridor.s_range  # the corridor's ends along u
 
     def u(self, xy: F64) -> F64:
         return (np.asarray(xy, np.float64).reshape(-1, 2) - self.origin) @ self.direction
@@ -280,17 +285,83 @@ def find_kink(wire: FittedWire, pts_in_world: F64, options: SpanOptions) -> floa
     return float(centre + t * scale)
 
 
+def _cut_at_kinks(
+    wire: FittedWire,
+    pts_in_world: F64,
+    direction_xy: F64,
+    options: SpanOptions,
+    wires_options: WiresOptions,
+    next_id: int,
+) -> tuple[list[FittedWire], list[F64], int]:
+    """``wire`` cut at every kink (:func:`find_kink`; its pieces looked at again: a wire may
+    run across two supports): the pieces (new ones numbered from ``next_id``), where the
+    kinks are in plan, and the next free id."""
+    out, kinks, todo = [], [], [wire]
+    while todo:
+        piece = todo.pop()
+        t = find_kink(piece, pts_in_world, options)
+        if t is not None:
+            s, _, _ = piece.plane_coords(pts_in_world[piece.point_indices])
+            left, right = piece.point_indices[s < t], piece.point_indices[s >= t]
+            if min(len(left), len(right)) >= wires_options.min_points:
+                a = refit(piece, pts_in_world, left, direction_xy, wires_options)
+                b = refit(piece, pts_in_world, right, direction_xy, wires_options)
+                if a is not piece and b is not piece:
+                    b = dataclasses.replace(b, wire_id=next_id)
+                    next_id += 1
+                    kinks.append(piece.points(np.array([t]))[0, :2])
+                    logger.info(
+                        "spans: wire %d bends at %.1f along it (a support): cut into %d and %d",
+                        piece.wire_id,
+                        t - piece.s_range[0],
+                        a.wire_id,
+                        b.wire_id,
+                    )
+                    todo += [a, b]
+                    continue
+        out.append(piece)
+    return out, kinks, next_id
+
+
+def cut_at_kinks(
+    wires: Sequence[FittedWire],
+    pts_in_world: F64,
+    direction_xy: F64,
+    options: SpanOptions | None = None,
+    wires_options: WiresOptions | None = None,
+) -> list[FittedWire]:
+    """The wires, each cut where it bends at a support it was measured across (one curve
+    through two spans fits neither: its points there are judged as a whole wrongly);
+    numbered from 0."""
+    options = options or SpanOptions()
+    wires_options = wires_options or WiresOptions()
+    next_id = max((w.wire_id for w in wires), default=-1) + 1
+    out: list[FittedWire] = []
+    for w in wires:
+        pieces, _, next_id = _cut_at_kinks(
+            w, pts_in_world, direction_xy, options, wires_options, next_id
+        )
+        out += pieces
+    return [dataclasses.replace(w, wire_id=i) for i, w in enumerate(out)]
+
+
 def _pieces_meet(
     a: FittedWire, b: FittedWire, leg: _Leg, options: SpanOptions, max_across: float
 ) -> float | None:
-    """Where two wires of one leg, ``a`` ending before ``b`` starts (along the leg), meet
-    at a support: their curves cross in the gap with a downward bend, in one vertical
-    plane. The position along the leg, or None."""
+    """Where two wires of one leg, ``a`` before ``b`` along it, meet at a support: their
+    curves cross between ``a``'s end and ``b``'s start with a downward bend, in one
+    vertical plane. Each may be carried a little past the support (its curve took some of
+    the next span's points there): they may overlap by up to half ``max_meeting_gap``. The
+    position along the leg, or None."""
     a_lo, a_hi = leg.ends_u(a)
     b_lo, b_hi = leg.ends_u(b)
-    if not (a_hi <= b_lo + options.support_radius and b_lo - a_hi <= options.max_meeting_gap):
+    gap = b_lo - a_hi
+    if not (-options.max_meeting_gap / 2 <= gap <= options.max_meeting_gap) or a_lo >= b_lo:
         return None
-    lo, hi = a_hi - options.support_radius, b_lo + options.support_radius
+    if a_hi >= b_hi:
+        return None
+    r = options.support_radius
+    lo, hi = min(a_hi, b_lo) - r, max(a_hi, b_lo) + r
     u = np.linspace(lo, hi, max(int((hi - lo) / 0.25), 2))
 
     def at(w: FittedWire) -> tuple[F64, F64]:
@@ -311,6 +382,69 @@ def _pieces_meet(
     if abs(ca[k] - cb[k]) > max_across:
         return None
     return t
+
+
+def _plane_crossings(
+    wires: list[FittedWire],
+    legs: list[int],
+    support: tuple[list[int], F64, str, set[int]],
+    axes: list[_Leg],
+    options: SpanOptions,
+    max_across: float,
+) -> F64:
+    """(K, 2) where the vertical planes of wires of two legs ending at an angle support
+    cross near it, at one height (one conductor's two spans): its attachments in plan."""
+    near = [
+        k
+        for k in range(len(wires))
+        if legs[k] in support[0]
+        and min(
+            np.linalg.norm(wires[k].points(np.array(wires[k].s_range))[:, :2] - support[1], axis=1)
+        )
+        <= options.max_meeting_gap / 2
+    ]
+    found = []
+    for i in near:
+        for j in near:
+            if legs[i] >= legs[j]:
+                continue
+            a, b = wires[i], wires[j]
+            m = np.c_[a.plane_direction_xy, -b.plane_direction_xy]
+            if abs(np.linalg.det(m)) < 1e-3:
+                continue
+            sa, sb = np.linalg.solve(m, b.plane_origin_xy - a.plane_origin_xy)
+            pa, pb = a.points(np.array([sa]))[0], b.points(np.array([sb]))[0]
+            near_support = np.linalg.norm(pa[:2] - support[1]) <= 2 * options.support_radius
+            if near_support and abs(pa[2] - pb[2]) <= max_across:
+                found.append(pa[:2])
+    return np.array(found).reshape(-1, 2)
+
+
+def _met_again(
+    wires: list[FittedWire],
+    legs: list[int],
+    leg: _Leg,
+    li: int,
+    u: float,
+    options: SpanOptions,
+    max_across: float,
+) -> float:
+    """Where the leg's wires ending on either side of the support at ``u`` meet (median),
+    or ``u`` when none do."""
+    r = 2 * options.support_radius
+    before = [
+        w for w, g in zip(wires, legs, strict=True) if g == li and abs(leg.ends_u(w)[1] - u) <= r
+    ]
+    after = [
+        w for w, g in zip(wires, legs, strict=True) if g == li and abs(leg.ends_u(w)[0] - u) <= r
+    ]
+    met = [
+        t
+        for a in before
+        for b in after
+        if a is not b and (t := _pieces_meet(a, b, leg, options, max_across)) is not None
+    ]
+    return float(np.median(met)) if met else u
 
 
 def _meeting(
@@ -341,9 +475,90 @@ def _meeting(
     return kink[1]
 
 
-def _seen(views: Sequence, pts: F64) -> npt.NDArray[np.int64]:
-    """(N,) how many views see each point."""
-    return np.sum([v.project(pts)[2] for v in views], axis=0).astype(np.int64)
+# The continuation test: the wire's curve extended this far past its end (model units: past
+# the insulators' hardware and short of a next support), read across at these offsets (px).
+CONTINUATION_M = (2.0, 8.0)
+RIDGE_OFFSETS_PX = np.arange(-8.0, 8.01, 0.5)
+RIDGE_SIGMAS = 2.5  # a ridge this many robust σ of the background's response is a line
+MAX_CONTINUATION_VIEWS = 6
+
+
+def _ridge(grey: np.ndarray, uv: F64) -> tuple[float, float]:
+    """The thin line along the image curve ``uv`` (M, 2): its signed ridge response
+    (brighter or darker than beside it: the grey levels across the curve averaged along
+    it, less their mean 2.5-3 px either side) at its strongest within 1.5 px of the curve,
+    and the robust σ of that response 5 px or more from it (the background's)."""
+    t = np.gradient(uv, axis=0)
+    t /= np.linalg.norm(t, axis=1, keepdims=True)
+    normal = np.c_[-t[:, 1], t[:, 0]]
+    pts = uv[:, None, :] + RIDGE_OFFSETS_PX[None, :, None] * normal[:, None, :] - 0.5
+    samples = cv2.remap(
+        grey,
+        pts[..., 0].astype(np.float32),
+        pts[..., 1].astype(np.float32),
+        cv2.INTER_LINEAR,
+        borderMode=cv2.BORDER_REFLECT,
+    )
+    g = samples.mean(axis=0)
+    o = RIDGE_OFFSETS_PX
+    r = g - np.array([np.interp(o + d, o, g) for d in (-3.0, -2.5, 2.5, 3.0)]).mean(axis=0)
+    inner = np.flatnonzero(np.abs(o) <= 1.5)
+    peak = float(r[inner[np.argmax(np.abs(r[inner]))]])
+    return peak, 1.4826 * float(np.median(np.abs(r[np.abs(o) >= 5.0]))) + 1e-6
+
+
+def _continues(views: Sequence, wire: FittedWire, at_end: int) -> bool | None:
+    """Whether the images show ``wire`` going on past its end ``at_end`` (0: first, 1:
+    last). Its curve is read CONTINUATION_M past the end, in two halves, in the views that
+    show it plainly along the same length before the end: it goes on in a view where both
+    halves hold a line of the same polarity and at least half the contrast of the measured
+    wire's (a tower's members cross there at all angles and contrasts, a wire carries on
+    as it was). It goes on when it does in at least half of those views; None when no
+    view shows the measured wire plainly (the test cannot tell)."""
+    lo, hi = wire.s_range
+    sign = -1.0 if at_end == 0 else 1.0
+    end = lo if at_end == 0 else hi
+    near, far = CONTINUATION_M
+    mid = 0.5 * (near + far)
+    halves = [
+        wire.points(end + sign * np.linspace(near, mid, 15)),
+        wire.points(end + sign * np.linspace(mid, far, 15)),
+    ]
+    before = wire.points(end - sign * np.linspace(near, far, 25))
+    shown = going = 0
+    ranked = sorted(views, key=lambda v: np.linalg.norm(v.center_in_world[:2] - halves[0][0, :2]))
+    for v in ranked:
+        if shown >= MAX_CONTINUATION_VIEWS:
+            break
+        projected = [v.project(p) for p in (before, *halves)]
+        if not all(ok.all() for _, _, ok in projected):
+            continue
+        uv = [q for q, _, _ in projected]
+        if min(np.ptp(q[:, 0]) + np.ptp(q[:, 1]) for q in uv) < 10:  # too short to read
+            continue
+        grey = read_image(v.path, cv2.IMREAD_GRAYSCALE).astype(np.float32)
+        ref, sigma = _ridge(grey, uv[0])
+        if abs(ref) < RIDGE_SIGMAS * sigma:
+            continue  # the measured wire itself is not plain here
+        shown += 1
+        going += all(
+            np.sign(peak) == np.sign(ref) and abs(peak) >= max(0.5 * abs(ref), RIDGE_SIGMAS * sg)
+            for peak, sg in (_ridge(grey, q) for q in uv[1:])
+        )
+    if shown == 0:
+        return None
+    return going >= shown / 2
+
+
+def _measurable(views: Sequence, at: F64, leg: _Leg, crossing_offset: float) -> bool:
+    """Whether the views could measure a wire at ``at`` along the leg: three of them see
+    it, from two positions across it (tracing's rule, and the coverage report's)."""
+    seeing = [v for v in views if v.project(at[None])[2][0]]
+    if len(seeing) < MIN_VIEWS_BEYOND:
+        return False
+    centres = np.array([v.center_in_world for v in seeing])
+    height = float(np.median(centres[:, 2]) - at[2])
+    return len(_strips(leg.c(centres[:, :2]), crossing_offset * height)) >= 2
 
 
 def _cluster(values: F64, radius: float) -> list[I64]:
@@ -368,15 +583,19 @@ def find_spans(
     pts_in_world: F64,
     options: SpanOptions | None = None,
     wires_options: WiresOptions | None = None,
+    crossing_offset: float = 0.15,
 ) -> Spans:
     """Find the supports, cut the wires at them, and say where each wire hangs.
 
     Args:
-        views: the registered images (``project``), to tell a line's end from the survey's.
+        views: the registered images (``project``, ``center_in_world``), to tell a line's
+            end from the survey's.
         ground_height: (N, 2) plan points → (N,) ground heights.
         wires: the fitted wires; ``legs[k]`` the corridor (index into ``corridors``) that
             measured wire k.
         pts_in_world: (N, 3) the points the wires' ``point_indices`` refer to.
+        crossing_offset: views this far apart across a wire, per unit of their height
+            above it, are at two positions (:class:`VerifyOptions`).
     """
     options = options or SpanOptions()
     wires_options = wires_options or WiresOptions()
@@ -393,29 +612,16 @@ def find_spans(
     cut_ids: set[int] = set()
     for k, w in enumerate(wires):
         leg = axes[legs[k]]
-        todo = [w]
-        while todo:
-            piece = todo.pop()
-            t = find_kink(piece, pts_in_world, options)
-            cut = None if t is None else _cut(piece, t, pts_in_world, leg, wires_options, next_id)
-            if t is None or cut is None:
-                out.append(piece)
-                source.append(k)
-                out_legs.append(legs[k])
-                continue
-            first, second = cut
-            cut_ids.update((first.wire_id, second.wire_id))
-            next_id += 1
-            u = float(leg.u(piece.points(np.array([t]))[:, :2])[0])
-            cands.append(_Candidate(legs[k], u, "kink", {first.wire_id, second.wire_id}))
-            logger.info(
-                "spans: wire %d bends at %.1f along it (a support): cut into %d and %d",
-                piece.wire_id,
-                t - piece.s_range[0],
-                first.wire_id,
-                second.wire_id,
-            )
-            todo += [first, second]
+        pieces, kinks, next_id = _cut_at_kinks(
+            w, pts_in_world, leg.direction, options, wires_options, next_id
+        )
+        out += pieces
+        source += [k] * len(pieces)
+        out_legs += [legs[k]] * len(pieces)
+        if kinks:
+            cut_ids.update(p.wire_id for p in pieces)
+        for xy in kinks:
+            cands.append(_Candidate(legs[k], float(leg.u(xy)[0]), "kink", set()))
 
     # 2. Pieces meeting across a gap at a support.
     for li, leg in enumerate(axes):
@@ -471,7 +677,28 @@ def find_spans(
                 )
                 c_mid = float(np.median([leg.c(out[idx[i]].plane_origin_xy)[0] for i in g]))
                 past = np.array([np.r_[leg.xy(u_end + sign * d, c_mid), z] for d in BEYOND_M])
-                if (_seen(views, past) >= MIN_VIEWS_BEYOND).all():
+                # Where the corridor ends, its wires end with it: the survey's edge.
+                edge = min(abs(u_end - e) for e in axes[li].extent)
+                if edge > options.support_radius and all(
+                    _measurable(views, p, leg, crossing_offset) for p in past
+                ):
+                    # And the images do not show the wires going on (where the
+                    # measurements stopped short of a support, they do).
+                    longest = sorted(g, key=lambda i: -np.ptp(ends[i]))[:3]
+                    goes_on = []
+                    for i in longest:
+                        w = out[idx[i]]
+                        first = float(np.mean(leg.ends_u(w))) > u_end
+                        which = 0 if first == _s_grows_along(w, leg) else 1
+                        goes_on.append(_continues(views, w, which))
+                    if any(goes_on):
+                        logger.info(
+                            "spans: %d wires end together at %.1f along the line, but the "
+                            "images show them going on: not the line's end",
+                            len(g),
+                            u_end,
+                        )
+                        continue
                     supports_u.append((li, u_end, "wires ending", {out[idx[i]].wire_id for i in g}))
 
     # 4. Cut every wire at each support of its leg that it runs across.
@@ -483,7 +710,8 @@ def find_spans(
             leg = axes[li]
             lo, hi = leg.ends_u(out[k])
             for s_li, u, _, _ in supports_u:
-                if s_li != li or not (lo + options.min_piece_m < u < hi - options.min_piece_m):
+                r = options.support_radius
+                if s_li != li or not (lo + r < u < hi - r):
                     continue
                 cut = _cut(out[k], leg.s_of(out[k], u), pts_in_world, leg, wires_options, next_id)
                 if cut is None:
@@ -495,8 +723,11 @@ def find_spans(
                 # curve took past the support (points of another pairing).
                 meet = _meeting(cut[0], cut[1], leg, u, options, max_across)
                 keep = list(cut)
-                if meet is None:
-                    keep = [max(cut, key=lambda w: len(w.point_indices))]
+                short = [w for w in cut if np.ptp(leg.ends_u(w)) < options.max_meeting_gap / 2]
+                if meet is None or (meet < options.min_kink_deg and short):
+                    # The shorter piece is a tail (a curve carried past the support by a
+                    # few metres of points; on its own its bend is not measured).
+                    keep = [max(cut, key=lambda w: np.ptp(leg.ends_u(w)))]
                 elif meet < options.min_kink_deg:
                     keep = []
                 if len(keep) < 2:
@@ -523,6 +754,15 @@ def find_spans(
         out, source, out_legs, cut_ids, pts_in_world, axes, wires_options
     )
 
+    # The cut pieces end at their supports now: where they meet places each support again
+    # (a wire carried past one had bent the curve that placed it).
+    supports_u = [
+        (li, _met_again(out, out_legs, axes[li], li, u, options, max_across), how, ids)
+        if how != "wires ending"
+        else (li, u, how, ids)
+        for li, u, how, ids in supports_u
+    ]
+
     # 5. Supports of two legs at one place: an angle support, and the legs one line.
     located = []  # (legs, xy, found_by, wire ids)
     for li, u, how, ids in supports_u:
@@ -545,6 +785,19 @@ def find_spans(
                 break
         else:
             merged.append((list(item[0]), item[1].copy(), item[2], set(item[3])))
+    # At an angle support each conductor's two spans hang in vertical planes that cross
+    # at its attachment: the support lies midway between the outermost of those crossings.
+    for m in merged:
+        if len(set(m[0])) > 1:
+            at = _plane_crossings(out, out_legs, m, axes, options, max_across)
+            if len(at) >= 2:
+                ds = [axes[a].direction for a in dict.fromkeys(m[0])]
+                d = ds[0] + sum((e if e @ ds[0] > 0 else -e) for e in ds[1:])
+                d = d / np.linalg.norm(d)
+                arm = np.array([d[1], -d[0]])
+                c = at @ arm
+                m[1][:] = np.mean(at @ d) * d + 0.5 * (c.min() + c.max()) * arm
+                merged[merged.index(m)] = (m[0], m[1], "spans crossing", m[3])
 
     # Lines: legs joined at a support they share.
     n_legs = len(axes)
@@ -555,7 +808,8 @@ def find_spans(
     graph = coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(n_legs, n_legs))
     _, line_of_leg = connected_components(graph, directed=False)
     # Lines numbered in the order of their first leg (the main line first).
-    line_ids = {int(lab): n + 1 for n, lab in enumerate(dict.fromkeys(line_of_leg.tolist()))}
+    with_wires = [int(line_of_leg[li]) for li in out_legs]
+    line_ids = {lab: n + 1 for n, lab in enumerate(dict.fromkeys(with_wires))}
 
     # 6. Chainage along each line, spans between its supports, attachments, conductors.
     chainage = _chainages(axes, merged, line_of_leg, out, out_legs)
@@ -780,6 +1034,11 @@ def _absorb_cut_pieces(
         gone.add(k)
     keep = [k for k in range(len(wires)) if k not in gone]
     return [wires[k] for k in keep], [source[k] for k in keep], [legs[k] for k in keep]
+
+
+def _s_grows_along(w: FittedWire, leg: _Leg) -> bool:
+    """Whether the wire's own s grows along the leg's u."""
+    return bool(w.plane_direction_xy @ leg.direction > 0)
 
 
 def _s_on_arm(w: FittedWire, xy: F64, arm: F64) -> float | None:

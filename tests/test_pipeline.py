@@ -59,14 +59,16 @@ def test_end_to_end_accuracy_and_completeness(run, medium_span):
     assert ev.ghost_wires == 0
     assert ev.outlier_share < 0.02
     assert len(result.pairs) >= 2
-    # Each image is read about 11 times (measured 348 reads of 32 images; 441 when the
+    # Each image was read about 11 times (measured 348 reads of 32 images; 441 when the
     # conductors the line's spacing predicts were looked for in one pass per group of
     # hypotheses apart in the images, now in one pass for all; 270 before the wires were
     # traced in every view, 181 with 2-pair probes): the corridor probe triangulates and
     # verifies four pairs per candidate direction and band before the run proper, and
     # tracing reads each image once more and those near the wires' ends again at each 5 m
-    # past them. Sharing those reads with the run is the speed issue's work; this bounds it.
-    assert len(result.decoded) <= 12 * len(result.scene)
+    # past them. Looking for more lines (the wider look's 8 images, and the densest band
+    # of five more directions probed) reads 101 more: 449 reads, 14 per image. Sharing
+    # those reads with the run is the speed issue's work; this bounds it.
+    assert len(result.decoded) <= 15 * len(result.scene)
 
 
 def test_outputs_follow_the_contract(run, medium_span):

@@ -13,14 +13,21 @@ from colmap_powerline.wires import FittedWire, WiresOptions, refit
 
 
 class _Sees:
-    """A stand-in view that sees every point within ``reach`` of the origin in plan."""
+    """A stand-in view 80 m up at ``(0, y)`` that sees every point within ``reach`` of the
+    origin in plan (its image shows nothing: whether a wire goes on cannot be read)."""
 
-    def __init__(self, reach: float) -> None:
+    def __init__(self, reach: float, y: float = 0.0) -> None:
         self.reach = reach
+        self.center_in_world = np.array([0.0, y, 80.0])
 
     def project(self, pts: np.ndarray):
         inside = np.hypot(pts[:, 0], pts[:, 1]) <= self.reach
         return np.zeros((len(pts), 2)), np.ones(len(pts)), inside
+
+
+def _views(reach: float) -> list[_Sees]:
+    """Three views from two strips, 30 m apart across the line."""
+    return [_Sees(reach, -15.0), _Sees(reach, -15.0), _Sees(reach, 15.0)]
 
 
 def _flat(xy: np.ndarray) -> np.ndarray:
@@ -134,7 +141,7 @@ def test_supports_spans_and_conductors_of_a_line(turn_deg):
     corridors = [_corridor(90.0), _corridor(90.0 - turn_deg)]
     if turn_deg == 0.0:  # a straight line is one corridor
         corridors, legs = corridors[:1], [0] * len(legs)
-    views = [_Sees(reach=220.0)] * 3  # the images see 40 m past the end towers
+    views = _views(220.0)  # the images see 40 m past the end towers
     sp = find_spans(views, _flat, wires, legs, corridors, pts)
     # Five supports where the towers are, on one line: ends, suspension, angle. Inner ones
     # where the curves meet (within 0.5 m); the line's ends where its wires end, short of
@@ -175,7 +182,7 @@ def test_wires_running_out_of_the_images_end_at_no_support():
     rng = np.random.default_rng(2)
     pts, wires, legs, towers = _line(rng, 0.0, join_first_two=False)
     # The images see only up to 185 m from the centre: the end towers' wires run out.
-    sp = find_spans([_Sees(reach=181.0)] * 3, _flat, wires, [0] * len(legs), [_corridor(90.0)], pts)
+    sp = find_spans(_views(181.0), _flat, wires, [0] * len(legs), [_corridor(90.0)], pts)
     kinds = sorted(s.kind for s in sp.supports)
     assert kinds == ["suspension"] * 3
 
@@ -190,7 +197,7 @@ def test_lines_spans_and_supports_are_written(tmp_path):
 
     rng = np.random.default_rng(3)
     pts, wires, legs, _ = _line(rng, 25.0, join_first_two=False)
-    sp = find_spans([_Sees(220.0)] * 3, _flat, wires, legs, [_corridor(90.0), _corridor(65.0)], pts)
+    sp = find_spans(_views(220.0), _flat, wires, legs, [_corridor(90.0), _corridor(65.0)], pts)
     x, y = np.meshgrid(np.arange(-250, 251, 5.0), np.arange(-150, 151, 5.0))
     ground = GroundModel(np.c_[x.ravel(), y.ravel()], np.zeros(x.size), 5.0)
     labels = np.full(len(pts), -1)
