@@ -44,7 +44,7 @@ from .rectify import RectifiedPair, RectifyOptions, rectify_pair
 from .report import write_report
 from .scene import Scene, SceneImage, load_scene, read_image, resolve_inputs
 from .sfm import SfmOptions, run_sfm
-from .spans import LineSupport, SpanOptions, WireSpan, cut_at_kinks, find_spans
+from .spans import LineSupport, SpanOptions, WireSpan, find_spans
 from .support import (
     SupportOptions,
     WireSupport,
@@ -787,11 +787,6 @@ def reconstruct_corridor(
 
     t0 = time.perf_counter()
     candidates = split_wires(verified.pts_in_world, corridor.azimuth_deg, options.wires)
-    # A wire chained across a support is two: one curve through both spans leaves each by
-    # decimetres and would be judged wrongly as a whole (the Seneca neutral across a pole).
-    candidates = cut_at_kinks(
-        candidates, verified.pts_in_world, corridor.direction_xy, options.spans, options.wires
-    )
     _add_time(timings, "wires", t0)
     t0 = time.perf_counter()
     index_of = {view.name: k for k, view in enumerate(scene.images)}

@@ -323,28 +323,6 @@ def _cut_at_kinks(
     return out, kinks, next_id
 
 
-def cut_at_kinks(
-    wires: Sequence[FittedWire],
-    pts_in_world: F64,
-    direction_xy: F64,
-    options: SpanOptions | None = None,
-    wires_options: WiresOptions | None = None,
-) -> list[FittedWire]:
-    """The wires, each cut where it bends at a support it was measured across (one curve
-    through two spans fits neither: its points there are judged as a whole wrongly);
-    numbered from 0."""
-    options = options or SpanOptions()
-    wires_options = wires_options or WiresOptions()
-    next_id = max((w.wire_id for w in wires), default=-1) + 1
-    out: list[FittedWire] = []
-    for w in wires:
-        pieces, _, next_id = _cut_at_kinks(
-            w, pts_in_world, direction_xy, options, wires_options, next_id
-        )
-        out += pieces
-    return [dataclasses.replace(w, wire_id=i) for i, w in enumerate(out)]
-
-
 def _pieces_meet(
     a: FittedWire, b: FittedWire, leg: _Leg, options: SpanOptions, max_across: float
 ) -> float | None:
