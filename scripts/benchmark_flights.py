@@ -384,7 +384,7 @@ def score_shared(scene: Path, out: Path, shared_path: Path) -> dict[str, Any]:
     layout = {}
     if spans:
         layout = {
-            "span_min": min(v["completeness"] for v in spans.values()) if spans else None,
+            "span_min": min(v["completeness"] for v in spans),
             "spans_true": len(spans),
             "spans_found": len({(w.get("line"), w.get("span")) for w in fitted}),
             **score_supports(doc.get("supports", []), scene),
