@@ -118,6 +118,16 @@ class VerifiedPoints:
             self, **{name: np.r_[getattr(self, name), a] for name, a in more.items()}
         )
 
+    def _appended_from(
+        self, src: VerifiedPoints | PendingPoints, **given: np.ndarray
+    ) -> VerifiedPoints:
+        """These points plus ``src``'s (its per-point fields, those ``given`` instead)."""
+        names = (
+            "pts_in_world", "hits", "views", "crossing_views", "crossing_hits", "posterior",
+            "pair_index", "refined", "primitive_index",
+        )  # fmt: skip
+        return self._appended(**{n: given[n] if n in given else getattr(src, n) for n in names})
+
     def with_consensus(
         self,
         pts_in_world: F64,
@@ -168,15 +178,9 @@ class VerifiedPoints:
         shift_prim = np.where(
             other.primitive_index >= 0, other.primitive_index + primitive_offset, -1
         )
-        out = self._appended(
-            pts_in_world=other.pts_in_world,
-            hits=other.hits,
-            views=other.views,
-            crossing_views=other.crossing_views,
-            crossing_hits=other.crossing_hits,
-            posterior=other.posterior,
+        out = self._appended_from(
+            other,
             pair_index=shift_pair.astype(np.int32),
-            refined=other.refined,
             primitive_index=shift_prim.astype(np.int64),
         )
         return dataclasses.replace(
@@ -196,17 +200,7 @@ class VerifiedPoints:
         rest = np.ones(len(p), bool)
         rest[take] = False
         taken = p.subset(take)
-        out = self._appended(
-            pts_in_world=taken.pts_in_world,
-            hits=taken.hits,
-            views=taken.views,
-            crossing_views=taken.crossing_views,
-            crossing_hits=taken.crossing_hits,
-            posterior=post,
-            pair_index=taken.pair_index,
-            refined=taken.refined,
-            primitive_index=taken.primitive_index,
-        )
+        out = self._appended_from(taken, posterior=post)
         return dataclasses.replace(out, pending=p.subset(rest) if rest.any() else None)
 
 

@@ -88,3 +88,31 @@ def test_primitives_on_a_confirmed_wire_join_its_points():
     again, out2 = _consensus(wires, out, prims)
     assert len(out2) == len(out) and len(again[0].point_indices) == len(wires[0].point_indices)
     assert wires[0].s_range == pytest.approx(wire.s_range)
+
+
+def test_verified_points_of_two_corridors_concatenate():
+    """Pair and primitive numbers of the second set shift past the first's (-1 stays -1);
+    every per-point field is carried; the views' hit rates are the better of the two."""
+    import dataclasses
+
+    from colmap_powerline.verify import VerifiedPoints
+
+    def points(n: int, pair: int, rate: float) -> VerifiedPoints:
+        z = np.zeros(n, np.int32)
+        return VerifiedPoints(
+            pts_in_world=np.full((n, 3), float(pair)), hits=z + 1, views=z + 2,
+            crossing_views=z + 3, crossing_hits=z + 4, posterior=np.full(n, 0.99),
+            pair_index=np.r_[np.full(n - 1, pair), -1].astype(np.int32),
+            refined=np.ones(n, bool), decoded=[], view_hit_rates=np.array([rate, np.nan]),
+            wire_pixels=[], primitive_index=np.r_[np.arange(n - 1), -1].astype(np.int64),
+        )  # fmt: skip
+
+    a, b = points(4, 0, 0.5), points(3, 1, 0.7)
+    both = a.concatenated(b, pair_offset=2, primitive_offset=10)
+    assert len(both) == 7
+    assert both.pair_index.tolist() == [0, 0, 0, -1, 3, 3, -1]
+    assert both.primitive_index.tolist() == [0, 1, 2, -1, 10, 11, -1]
+    for f in ("hits", "views", "crossing_views", "crossing_hits", "posterior", "refined"):
+        assert np.array_equal(getattr(both, f), np.r_[getattr(a, f), getattr(b, f)])
+    assert both.view_hit_rates[0] == 0.7 and np.isnan(both.view_hit_rates[1])
+    assert dataclasses.replace(both, pending=None).pending is None
