@@ -27,7 +27,7 @@ The two survey layouts (``multispan``, ``twolines``; shared generator only: the 
 renders one span) add to their row: the spans the output numbers against the true ones, the
 least complete span, and the supports: true towers and poles matched by a support found
 within 0.5 m in plan and 1 m in height (its highest attachment against the tower's top), how
-many were found, and the worst plan and height errors.
+many were found, the worst plan and height errors, and the time per span.
 
 Every cell renders its scene at ``--scale`` (cached under ``--work_path`` and reused), runs
 ``colmap-powerline reconstruct --image_path SCENE/images --input_path SCENE/sparse/0`` in a
@@ -525,7 +525,8 @@ def markdown(rows: Sequence[dict[str, Any]]) -> str:
             cols = ["–"] * 7
         if ok and r.get("spans_true"):
             cols[1] += (
-                f"; spans {r['spans_found']}/{r['spans_true']}, each ≥ {_pct(r['span_min'])}; "
+                f"; spans {r['spans_found']}/{r['spans_true']}, each ≥ {_pct(r['span_min'])}"
+                f" ({r['time_s'] / r['spans_true']:.0f} s per span); "
                 f"supports {r['supports_right']}/{r['supports_true']} right "
                 f"({r['supports_found']} found; worst {r['support_plan_max_m']:.2f} m in plan, "
                 f"{r['support_height_max_m']:.2f} m in height)"
