@@ -677,7 +677,10 @@ def find_spans(
                             u_end,
                         )
                         continue
-                    supports_u.append((li, u_end, "wires ending", {out[idx[i]].wire_id for i in g}))
+                    # Placed where the wires' measurements end, their median: some stop
+                    # short at the insulators' hardware, some are carried a little past.
+                    u_at = float(np.median(ends[g, side]))
+                    supports_u.append((li, u_at, "wires ending", {out[idx[i]].wire_id for i in g}))
 
     # 4. Cut every wire at each support of its leg that it runs across.
     changed = True
