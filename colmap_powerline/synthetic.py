@@ -138,11 +138,13 @@ class SyntheticSpanOptions:
         legs = (FlightPattern.CORRIDOR, FlightPattern.ALONG4)
         if self.layout is Layout.ANGLE and self.flight not in legs:
             raise ValueError(
-                f"layout angle is flown along its legs: {self.flight=} but expected "
-                "corridor or along4"
+                f"layout angle is flown along its legs: flight {self.flight.value!r} but "
+                "expected corridor or along4"
             )
         if self.layout is Layout.CROSSING and self.flight is not FlightPattern.GRID:
-            raise ValueError(f"layout crossing is an area survey: {self.flight=} but expected grid")
+            raise ValueError(
+                f"layout crossing is an area survey: flight {self.flight.value!r} but expected grid"
+            )
         if not 0.0 < self.turn_deg <= 60.0:
             raise ValueError(f"{self.turn_deg=} but expected 0 < turn_deg ≤ 60")
         if not 20.0 <= self.crossing_deg <= 90.0:
