@@ -29,7 +29,8 @@ import numpy.typing as npt
 from scipy.spatial import cKDTree
 
 from .errors import InputError
-from .export import ply_header, read_point_cloud, write_atomic
+from .export import read_point_cloud
+from .files import ply_header, write_atomic
 from .georef import crs_converter, frame_wkt
 from .las import CONDUCTOR, GROUND, TOWER, UNCLASSIFIED, WIRE_CLASS, write_las
 from .scene import GroundModel

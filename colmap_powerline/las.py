@@ -15,7 +15,7 @@ import laspy
 import numpy as np
 import numpy.typing as npt
 
-from .export import write_atomic
+from .files import write_atomic
 
 UNCLASSIFIED, GROUND, SHIELD_WIRE, CONDUCTOR, TOWER = 1, 2, 13, 14, 15
 WIRE_CLASS = {"conductor": CONDUCTOR, "shield": SHIELD_WIRE}

@@ -25,7 +25,8 @@ from .coverage import WireCoverage, log_coverage, measured_coverage
 from .dense import dense_ground, fill, open_ply
 from .detect import DetectOptions, WireMask, detect_wires
 from .errors import InputError, PairGeometryError
-from .export import export_results, wire_colors
+from .export import export_results
+from .files import wire_colors
 from .georef import Georeference, crs_converter, crs_wkt, read_georeference
 from .las import CONDUCTOR, WIRE_CLASS, write_las
 from .pairs import (

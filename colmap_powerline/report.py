@@ -22,7 +22,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from .export import wire_colors, write_atomic  # noqa: E402
+from .files import wire_colors, write_atomic  # noqa: E402
 
 if TYPE_CHECKING:
     from .pipeline import ReconstructionOptions, ReconstructionResult

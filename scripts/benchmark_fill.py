@@ -23,7 +23,7 @@ import numpy as np
 
 def _write_cloud(path: Path, n: int) -> None:
     from colmap_powerline.dense import FUSED_PLY_DTYPE as dtype
-    from colmap_powerline.export import ply_header
+    from colmap_powerline.files import ply_header
 
     rng = np.random.default_rng(0)
     with path.open("wb") as f:

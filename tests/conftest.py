@@ -44,7 +44,7 @@ def write_fused_ply(path, xyz, rgb=None):
     """A dense cloud exactly as COLMAP's stereo_fusion writes fused.ply: binary little
     endian, float x y z nx ny nz, uchar red green blue."""
     from colmap_powerline.dense import FUSED_PLY_DTYPE
-    from colmap_powerline.export import ply_header
+    from colmap_powerline.files import ply_header
 
     pts = np.zeros(len(xyz), FUSED_PLY_DTYPE)
     pts["x"], pts["y"], pts["z"] = xyz[:, 0], xyz[:, 1], xyz[:, 2]

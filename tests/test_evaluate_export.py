@@ -9,7 +9,8 @@ import open3d as o3d
 import pytest
 
 from colmap_powerline.evaluate import distance_to_polyline, evaluate
-from colmap_powerline.export import export_results, read_point_cloud, write_atomic
+from colmap_powerline.export import export_results, read_point_cloud
+from colmap_powerline.files import write_atomic
 from colmap_powerline.synthetic import SyntheticSpanOptions, build_span
 from colmap_powerline.wires import split_wires
 
