@@ -10,7 +10,7 @@ import json
 import logging
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -20,8 +20,8 @@ import numpy.typing as npt
 from scipy.spatial import cKDTree
 from tqdm import tqdm
 
-from .clearance import WireMeasures, assign_kinds, measure_wire
-from .coverage import WireCoverage, log_coverage, measured_coverage
+from .clearance import assign_kinds, measure_wire
+from .coverage import log_coverage, measured_coverage
 from .dense import dense_ground, fill, open_ply
 from .detect import DetectOptions, WireMask, detect_wires
 from .errors import InputError, PairGeometryError
@@ -33,7 +33,6 @@ from .pairs import (
     WIDE_CANDIDATES,
     DirectionCandidates,
     ImagePair,
-    PairsOptions,
     WireCorridor,
     axial_mean_deg,
     corridor_from_points,
@@ -41,13 +40,13 @@ from .pairs import (
     provisional_corridors,
     select_pairs,
 )
-from .rectify import RectifiedPair, RectifyOptions, rectify_pair
+from .rectify import RectifiedPair, rectify_pair
 from .report import write_report
+from .results import CorridorResult, ReconstructionOptions, ReconstructionResult
 from .scene import Scene, SceneImage, load_scene, read_image, resolve_inputs
-from .sfm import SfmOptions, run_sfm
-from .spans import LineSupport, SpanOptions, WireSpan, find_spans
+from .sfm import run_sfm
+from .spans import find_spans
 from .support import (
-    SupportOptions,
     WireSupport,
     height_above_ground,
     keep_supported,
@@ -56,8 +55,8 @@ from .support import (
 )
 from .swaps import swapped_pairings
 from .trace import MIN_REDUNDANCY, MIN_TRACED_SHARE, TraceOptions, trace_wires
-from .triangulate import Primitives, TriangulateOptions, triangulate_pair, wire_centres
-from .verify import VerifiedPoints, VerifyOptions, WireMaskFn, verify_primitives
+from .triangulate import Primitives, triangulate_pair, wire_centres
+from .verify import VerifiedPoints, WireMaskFn, verify_primitives
 from .wires import (
     FittedWire,
     WiresOptions,
@@ -99,69 +98,6 @@ SIBLING_LIFTS = (-0.5, 0.5, -1.0, 1.0)
 # Confirmed wires take the points the views favour in steps of ``WiresOptions.max_gap`` past
 # their ends; this many steps reach past any span.
 MAX_ABSORB_STEPS = 40
-
-
-@dataclass(kw_only=True)
-class ReconstructionOptions:
-    pairs: PairsOptions = field(default_factory=PairsOptions)
-    rectify: RectifyOptions = field(default_factory=RectifyOptions)
-    detect: DetectOptions = field(default_factory=DetectOptions)
-    triangulate: TriangulateOptions = field(default_factory=TriangulateOptions)
-    verify: VerifyOptions = field(default_factory=VerifyOptions)
-    wires: WiresOptions = field(default_factory=WiresOptions)
-    support: SupportOptions = field(default_factory=SupportOptions)
-    trace: TraceOptions = field(default_factory=TraceOptions)
-    spans: SpanOptions = field(default_factory=SpanOptions)
-    sfm: SfmOptions = field(default_factory=SfmOptions)  # used when no model is given
-    skip_bad_images: bool = False  # drop missing/undecodable images with a warning
-    min_clearance_m: float | None = None  # flag wire stretches closer to the ground
-    dense_path: Path | None = None  # dense cloud: its ground for the clearance, and the
-    # wires merged into it (OUT/merged.ply)
-    las: bool = False  # also write OUT/wires.las (and OUT/merged.las with dense_path)
-    report: bool = False  # also write OUT/report/ (figures + index.html)
-    output_crs: str | None = None  # write coordinates in this projected CRS ("utm" or
-    # "EPSG:…"); needs a model georeferenced from GPS
-    show_progress: bool = True  # progress bars on the loops over pairs and images
-    debug: bool = False  # also write primitives.ply (every candidate before verification)
-
-
-@dataclass(eq=False)
-class ReconstructionResult:
-    scene: Scene
-    corridor: WireCorridor
-    pairs: list[ImagePair]
-    primitives: list[Primitives]
-    verified: VerifiedPoints
-    wires: list[FittedWire]
-    labels: npt.NDArray[np.int64]  # (N,) wire id of each verified point, -1 for none
-    timings_s: dict[str, float]
-    decoded: list[Path]  # every image file decoded, in order (repeats included)
-    measures: list[WireMeasures]  # sag and clearance of each wire
-    supports: list[WireSupport]  # how well the views support each wire
-    georeference: Georeference | None  # how the model is in metres (None: it is not)
-    outputs: dict[str, Path] = field(default_factory=dict)
-    coverage: list[WireCoverage] = field(default_factory=list)  # where each wire was
-    # measured, and why not elsewhere
-    placement: list[WireSpan] = field(default_factory=list)  # each wire's line and span
-    line_supports: list[LineSupport] = field(default_factory=list)  # towers and poles
-    corridors: list[WireCorridor] = field(default_factory=list)  # every line's (or leg's)
-
-
-@dataclass(eq=False)
-class CorridorResult:
-    """What one corridor's pairs measured: :func:`reconstruct_corridor`."""
-
-    corridor: WireCorridor
-    pairs: list[ImagePair]
-    primitives: list[Primitives]
-    verified: VerifiedPoints
-    wires: list[FittedWire]
-    supports: list[WireSupport]
-    decoded: list[Path]  # every image file decoded, in order (repeats included)
-    n_candidates: int  # wires hypothesised before the views judged them
-    on_ground: int  # of those, how many lay on the ground
-    legs: list[int] = field(default_factory=list)  # (merged) the corridor of each wire
-    corridors: list[WireCorridor] = field(default_factory=list)  # (merged) every corridor
 
 
 def _add_time(timings: dict[str, float], stage: str, t0: float) -> None:

@@ -25,7 +25,7 @@ import numpy as np  # noqa: E402
 from .files import wire_colors, write_atomic  # noqa: E402
 
 if TYPE_CHECKING:
-    from .pipeline import ReconstructionOptions, ReconstructionResult
+    from .results import ReconstructionOptions, ReconstructionResult
     from .scene import GroundModel
 
 logger = logging.getLogger(__name__)

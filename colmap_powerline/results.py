@@ -1,0 +1,89 @@
+"""The pipeline's options and results: what :func:`colmap_powerline.reconstruct` takes and
+gives, and what one corridor's reconstruction gives, as types of their own (the report and
+the output step read them without importing the pipeline)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import numpy.typing as npt
+
+from .clearance import WireMeasures
+from .coverage import WireCoverage
+from .detect import DetectOptions
+from .georef import Georeference
+from .pairs import ImagePair, PairsOptions, WireCorridor
+from .rectify import RectifyOptions
+from .scene import Scene
+from .sfm import SfmOptions
+from .spans import LineSupport, SpanOptions, WireSpan
+from .support import SupportOptions, WireSupport
+from .trace import TraceOptions
+from .triangulate import Primitives, TriangulateOptions
+from .verify import VerifiedPoints, VerifyOptions
+from .wires import FittedWire, WiresOptions
+
+
+@dataclass(kw_only=True)
+class ReconstructionOptions:
+    pairs: PairsOptions = field(default_factory=PairsOptions)
+    rectify: RectifyOptions = field(default_factory=RectifyOptions)
+    detect: DetectOptions = field(default_factory=DetectOptions)
+    triangulate: TriangulateOptions = field(default_factory=TriangulateOptions)
+    verify: VerifyOptions = field(default_factory=VerifyOptions)
+    wires: WiresOptions = field(default_factory=WiresOptions)
+    support: SupportOptions = field(default_factory=SupportOptions)
+    trace: TraceOptions = field(default_factory=TraceOptions)
+    spans: SpanOptions = field(default_factory=SpanOptions)
+    sfm: SfmOptions = field(default_factory=SfmOptions)  # used when no model is given
+    skip_bad_images: bool = False  # drop missing/undecodable images with a warning
+    min_clearance_m: float | None = None  # flag wire stretches closer to the ground
+    dense_path: Path | None = None  # dense cloud: its ground for the clearance, and the
+    # wires merged into it (OUT/merged.ply)
+    las: bool = False  # also write OUT/wires.las (and OUT/merged.las with dense_path)
+    report: bool = False  # also write OUT/report/ (figures + index.html)
+    output_crs: str | None = None  # write coordinates in this projected CRS ("utm" or
+    # "EPSG:…"); needs a model georeferenced from GPS
+    show_progress: bool = True  # progress bars on the loops over pairs and images
+    debug: bool = False  # also write primitives.ply (every candidate before verification)
+
+
+@dataclass(eq=False)
+class ReconstructionResult:
+    scene: Scene
+    corridor: WireCorridor
+    pairs: list[ImagePair]
+    primitives: list[Primitives]
+    verified: VerifiedPoints
+    wires: list[FittedWire]
+    labels: npt.NDArray[np.int64]  # (N,) wire id of each verified point, -1 for none
+    timings_s: dict[str, float]
+    decoded: list[Path]  # every image file decoded, in order (repeats included)
+    measures: list[WireMeasures]  # sag and clearance of each wire
+    supports: list[WireSupport]  # how well the views support each wire
+    georeference: Georeference | None  # how the model is in metres (None: it is not)
+    outputs: dict[str, Path] = field(default_factory=dict)
+    coverage: list[WireCoverage] = field(default_factory=list)  # where each wire was
+    # measured, and why not elsewhere
+    placement: list[WireSpan] = field(default_factory=list)  # each wire's line and span
+    line_supports: list[LineSupport] = field(default_factory=list)  # towers and poles
+    corridors: list[WireCorridor] = field(default_factory=list)  # every line's (or leg's)
+
+
+@dataclass(eq=False)
+class CorridorResult:
+    """What one corridor's pairs measured: :func:`reconstruct_corridor`."""
+
+    corridor: WireCorridor
+    pairs: list[ImagePair]
+    primitives: list[Primitives]
+    verified: VerifiedPoints
+    wires: list[FittedWire]
+    supports: list[WireSupport]
+    decoded: list[Path]  # every image file decoded, in order (repeats included)
+    n_candidates: int  # wires hypothesised before the views judged them
+    on_ground: int  # of those, how many lay on the ground
+    legs: list[int] = field(default_factory=list)  # (merged) the corridor of each wire
+    corridors: list[WireCorridor] = field(default_factory=list)  # (merged) every corridor
