@@ -271,6 +271,11 @@ def _pick_spread(scene: Scene, n: int) -> list[SceneImage]:
     return [scene.images[k] for k in chosen]
 
 
+def axial_diff_deg(a: npt.ArrayLike, b: npt.ArrayLike) -> F64:
+    """Angles between axial directions in degrees (0-90): 10° and 190° are one direction."""
+    return np.abs((np.asarray(a, np.float64) - np.asarray(b, np.float64) + 90.0) % 180.0 - 90.0)
+
+
 def axial_mean_deg(angles_deg: F64, weights: F64) -> float:
     """Weighted mean of directions defined modulo 180° (degrees, in [0, 180))."""
     doubled = np.deg2rad(2 * np.asarray(angles_deg, np.float64))
@@ -284,7 +289,7 @@ def _consensus_azimuth(
 ) -> float | None:
     """The azimuth (mod 180) most images agree on within a tolerance, weighted; None when no
     direction gathers a third of the weight (images without wires vote at random)."""
-    diff = np.abs((azimuths[:, None] - azimuths[None, :] + 90) % 180 - 90)
+    diff = axial_diff_deg(azimuths[:, None], azimuths[None, :])
     support = (diff < tolerance_deg) @ weights
     best = int(np.argmax(support))
     if support[best] <= min_share * weights.sum():
@@ -372,7 +377,7 @@ def direction_candidates(
             )
             if cand is None:
                 break
-            near = np.abs((az_arr - cand + 90) % 180 - 90) < tol
+            near = axial_diff_deg(az_arr, cand) < tol
             cands.append((cand, float(w_arr[near & remaining].sum())))
             remaining &= ~near
     if not cands:

@@ -34,6 +34,7 @@ from .pairs import (
     DirectionCandidates,
     ImagePair,
     WireCorridor,
+    axial_diff_deg,
     axial_mean_deg,
     corridor_from_points,
     direction_candidates,
@@ -292,7 +293,7 @@ def _another_line(probe: _Probe, found: Sequence[_Probe], tolerance_deg: float) 
     a direction of their own (a probe across the found line's wires at another angle
     measures that line's direction again)."""
     return probe.num_wires >= MIN_LINE_WIRES and all(
-        abs((probe.azimuth_deg - f.azimuth_deg + 90) % 180 - 90) >= tolerance_deg for f in found
+        axial_diff_deg(probe.azimuth_deg, f.azimuth_deg) >= tolerance_deg for f in found
     )
 
 
@@ -351,7 +352,7 @@ def probe_corridors(scene: Scene, options: ReconstructionOptions) -> list[WireCo
         fresh = [
             int(k)
             for k in np.argsort(wide.weights)[::-1]
-            if all(abs((wide.azimuths_deg[k] - a + 90) % 180 - 90) >= tol for a in probed)
+            if all(axial_diff_deg(wide.azimuths_deg[k], a) >= tol for a in probed)
         ][: (WIDE_CANDIDATES if lost else 1) * options.pairs.probe_candidates]
         logger.info(
             "probe: %s; %d more from %d images ranked alike at every angle: %s",

@@ -32,6 +32,7 @@ import dataclasses
 import logging
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -39,7 +40,7 @@ import numpy.typing as npt
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
-from .pairs import WireCorridor
+from .pairs import WireCorridor, axial_diff_deg
 from .scene import read_image
 from .support import _strips
 from .wires import FittedWire, WiresOptions, refit
@@ -189,11 +190,28 @@ class _Leg:
     def xy(self, u: float, c: float) -> F64:
         return self.origin + u * self.direction + c * self.normal
 
-    def s_of(self, wire: FittedWire, u: float) -> float:
-        """The position along ``wire``'s plane that lies at ``u`` along this leg."""
+    def s_along(self, wire: FittedWire, u: F64) -> F64:
+        """(N,) positions along ``wire``'s plane that lie at ``u`` (N,) along this leg."""
         d = float(wire.plane_direction_xy @ self.direction)
         u0 = float(self.u(wire.plane_origin_xy)[0])
-        return (u - u0) / d if abs(d) > 1e-6 else float("nan")
+        u = np.asarray(u, np.float64)
+        return (u - u0) / d if abs(d) > 1e-6 else np.full(u.shape, np.nan)
+
+    def s_of(self, wire: FittedWire, u: float) -> float:
+        return float(self.s_along(wire, np.array([u]))[0])
+
+    def curve(self, wire: FittedWire, u: F64) -> tuple[F64, F64]:
+        """``wire`` at ``u`` (N,) along this leg: its offset across the leg and height."""
+        p = wire.points(self.s_along(wire, u))
+        return self.c(p[:, :2]), p[:, 2]
+
+    def bisector(self, others: Sequence[_Leg]) -> tuple[F64, F64]:
+        """The mean direction of this leg and ``others`` (axial: each turned towards this
+        one), and across it: a support's cross-arm where the legs meet."""
+        d = self.direction + sum((e if e @ self.direction > 0 else -e) for e in
+                                 (o.direction for o in others))  # fmt: skip
+        d = d / np.linalg.norm(d)
+        return d, np.array([d[1], -d[0]])
 
     def ends_u(self, wire: FittedWire) -> tuple[float, float]:
         u = self.u(wire.points(np.array(wire.s_range))[:, :2])
@@ -219,10 +237,6 @@ def _parabola_rss(s: F64, z: F64) -> tuple[F64, F64]:
     left = sides(cm, ct, cz)
     right = sides(cm[:, -1:] - cm, ct[:, -1:] - ct, cz[-1] - cz)
     return left, right
-
-
-def _parabola(s: F64, z: F64) -> F64:
-    return np.polyfit(s, z, 2)
 
 
 def _kink_between(left: F64, right: F64, lo: float, hi: float) -> tuple[float, float] | None:
@@ -268,7 +282,7 @@ def find_kink(wire: FittedWire, pts_in_world: F64, options: SpanOptions) -> floa
     one = left[-1]
     if not np.isfinite(split[best]) or one <= options.min_improvement**2 * split[best]:
         return None
-    pl, pr = _parabola(x[:best], z[:best]), _parabola(x[best:], z[best:])
+    pl, pr = np.polyfit(x[:best], z[:best], 2), np.polyfit(x[best:], z[best:], 2)
     # The support lies between the two sides' points, or a little beyond either.
     margin = options.support_radius / scale
     kink = _kink_between(pl, pr, x[best - 1] - margin, x[best] + margin)
@@ -341,14 +355,8 @@ def _pieces_meet(
     r = options.support_radius
     lo, hi = min(a_hi, b_lo) - r, max(a_hi, b_lo) + r
     u = np.linspace(lo, hi, max(int((hi - lo) / 0.25), 2))
-
-    def at(w: FittedWire) -> tuple[F64, F64]:
-        s = (u - float(leg.u(w.plane_origin_xy)[0])) / float(w.plane_direction_xy @ leg.direction)
-        p = w.points(s)
-        return leg.c(p[:, :2]), p[:, 2]
-
-    ca, za = at(a)
-    cb, zb = at(b)
+    ca, za = leg.curve(a, u)
+    cb, zb = leg.curve(b, u)
     # Fitted in the leg's u (parabolas: within a millimetre of the catenaries here).
     fa = np.polyfit(u, za, 2)
     fb = np.polyfit(u, zb, 2)
@@ -434,16 +442,8 @@ def _meeting(
         a, b = b, a
     r = options.support_radius
     grid = np.linspace(u - r, u + r, 33)
-
-    def at(w: FittedWire) -> tuple[F64, F64]:
-        s = (grid - float(leg.u(w.plane_origin_xy)[0])) / float(
-            w.plane_direction_xy @ leg.direction
-        )
-        p = w.points(s)
-        return leg.c(p[:, :2]), p[:, 2]
-
-    ca, za = at(a)
-    cb, zb = at(b)
+    ca, za = leg.curve(a, grid)
+    cb, zb = leg.curve(b, grid)
     kink = _kink_between(np.polyfit(grid, za, 2), np.polyfit(grid, zb, 2), u - r, u + r)
     if kink is None:
         return None
@@ -485,14 +485,17 @@ def _ridge(grey: np.ndarray, uv: F64) -> tuple[float, float]:
     return peak, 1.4826 * float(np.median(np.abs(r[np.abs(o) >= 5.0]))) + 1e-6
 
 
-def _continues(views: Sequence, wire: FittedWire, at_end: int) -> bool | None:
+def _continues(
+    views: Sequence, wire: FittedWire, at_end: int, greys: dict[Path, np.ndarray]
+) -> bool | None:
     """Whether the images show ``wire`` going on past its end ``at_end`` (0: first, 1:
     last). Its curve is read CONTINUATION_M past the end, in two halves, in the views that
     show it plainly along the same length before the end: it goes on in a view where both
     halves hold a line of the same polarity and at least half the contrast of the measured
     wire's (a tower's members cross there at all angles and contrasts, a wire carries on
     as it was). It goes on when it does in at least half of those views; None when no
-    view shows the measured wire plainly (the test cannot tell)."""
+    view shows the measured wire plainly (the test cannot tell). ``greys``: the grey images
+    read so far (the wires ending at one place share their views: each is read once)."""
     lo, hi = wire.s_range
     sign = -1.0 if at_end == 0 else 1.0
     end = lo if at_end == 0 else hi
@@ -514,7 +517,9 @@ def _continues(views: Sequence, wire: FittedWire, at_end: int) -> bool | None:
         uv = [q for q, _, _ in projected]
         if min(np.ptp(q[:, 0]) + np.ptp(q[:, 1]) for q in uv) < 10:  # too short to read
             continue
-        grey = read_image(v.path, cv2.IMREAD_GRAYSCALE).astype(np.float32)
+        if v.path not in greys:
+            greys[v.path] = read_image(v.path, cv2.IMREAD_GRAYSCALE).astype(np.float32)
+        grey = greys[v.path]
         ref, sigma = _ridge(grey, uv[0])
         if abs(ref) < RIDGE_SIGMAS * sigma:
             continue  # the measured wire itself is not plain here
@@ -546,10 +551,6 @@ def _cluster(values: F64, radius: float) -> list[I64]:
     order = np.argsort(values)
     breaks = np.flatnonzero(np.diff(values[order]) > radius) + 1
     return [g for g in np.split(order, breaks)]
-
-
-def _axial_diff_deg(a: float, b: float) -> float:
-    return abs((a - b + 90.0) % 180.0 - 90.0)
 
 
 def find_spans(
@@ -664,11 +665,12 @@ def find_spans(
                     # measurements stopped short of a support, they do).
                     longest = sorted(g, key=lambda i: -np.ptp(ends[i]))[:3]
                     goes_on = []
+                    greys: dict[Path, np.ndarray] = {}
                     for i in longest:
                         w = out[idx[i]]
                         first = float(np.mean(leg.ends_u(w))) > u_end
                         which = 0 if first == _s_grows_along(w, leg) else 1
-                        goes_on.append(_continues(views, w, which))
+                        goes_on.append(_continues(views, w, which, greys))
                     if any(goes_on):
                         logger.info(
                             "spans: %d wires end together at %.1f along the line, but the "
@@ -768,17 +770,14 @@ def find_spans(
             merged.append((list(item[0]), item[1].copy(), item[2], set(item[3])))
     # At an angle support each conductor's two spans hang in vertical planes that cross
     # at its attachment: the support lies midway between the outermost of those crossings.
-    for m in merged:
+    for i, m in enumerate(merged):
         if len(set(m[0])) > 1:
             at = _plane_crossings(out, out_legs, m, axes, options, max_across)
             if len(at) >= 2:
-                ds = [axes[a].direction for a in dict.fromkeys(m[0])]
-                d = ds[0] + sum((e if e @ ds[0] > 0 else -e) for e in ds[1:])
-                d = d / np.linalg.norm(d)
-                arm = np.array([d[1], -d[0]])
+                d, arm = _arm(axes, m[0])
                 c = at @ arm
                 m[1][:] = np.mean(at @ d) * d + 0.5 * (c.min() + c.max()) * arm
-                merged[merged.index(m)] = (m[0], m[1], "spans crossing", m[3])
+                merged[i] = (m[0], m[1], "spans crossing", m[3])
 
     # Lines: legs joined at a support they share.
     n_legs = len(axes)
@@ -803,7 +802,7 @@ def find_spans(
         legs_m, xy, how, _ = merged[mi]
         turn = max(
             (
-                _axial_diff_deg(axes[a].azimuth_deg, axes[b].azimuth_deg)
+                float(axial_diff_deg(axes[a].azimuth_deg, axes[b].azimuth_deg))
                 for a in legs_m
                 for b in legs_m
             ),
@@ -826,12 +825,7 @@ def find_spans(
         )
     # Each support's cross-arm in plan: across its leg, or along the bisector of the turn
     # at an angle support (each conductor keeps its offset from the line on both legs).
-    arms = []
-    for mi in order:
-        ds = [axes[a].direction for a in dict.fromkeys(merged[mi][0])]
-        d = ds[0] + sum((e if e @ ds[0] > 0 else -e) for e in ds[1:])
-        d = d / np.linalg.norm(d)
-        arms.append(np.array([d[1], -d[0]]))
+    arms = [_arm(axes, merged[mi][0])[1] for mi in order]
     placement: list[WireSpan] = []
     attached: dict[int, list[tuple[int, F64]]] = {}
     spans_key: list[tuple[int, int]] = []
@@ -1015,6 +1009,13 @@ def _absorb_cut_pieces(
         gone.add(k)
     keep = [k for k in range(len(wires)) if k not in gone]
     return [wires[k] for k in keep], [source[k] for k in keep], [legs[k] for k in keep]
+
+
+def _arm(axes: list[_Leg], legs: list[int]) -> tuple[F64, F64]:
+    """Along and across the cross-arm of a support of ``legs``: across its leg, or along
+    the bisector of the turn where two legs meet."""
+    first, *others = dict.fromkeys(legs)
+    return axes[first].bisector([axes[o] for o in others])
 
 
 def _s_grows_along(w: FittedWire, leg: _Leg) -> bool:
