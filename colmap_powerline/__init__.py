@@ -3,23 +3,31 @@
 from typing import Any
 
 from .errors import InputError
+from .options import OptionError
 from .scene import Scene, SceneImage, load_scene
 
 __all__ = [
     "InputError",
+    "OptionError",
+    "OutputOptions",
     "ReconstructionOptions",
+    "ReconstructionResult",
     "Scene",
     "SceneImage",
     "SfmOptions",
     "load_scene",
     "reconstruct",
     "run_sfm",
+    "write_outputs",
 ]
 __version__ = "0.1.0"
 
 _LAZY = {
     "reconstruct": "pipeline",
-    "ReconstructionOptions": "pipeline",
+    "write_outputs": "pipeline",
+    "ReconstructionOptions": "results",
+    "ReconstructionResult": "results",
+    "OutputOptions": "results",
     "run_sfm": "sfm",
     "SfmOptions": "sfm",
 }

@@ -15,6 +15,7 @@ from typing import Any
 
 from .errors import InputError
 from .georef import GeoreferenceOptions
+from .options import OptionError
 from .sfm import SfmOptions
 from .synthetic import Background, FlightPattern, Layout, SyntheticSpanOptions
 
@@ -84,7 +85,8 @@ def _cmd_synthetic(args: argparse.Namespace) -> int:
 
 def _cmd_demo(args: argparse.Namespace) -> int:
     from .evaluate import evaluate
-    from .pipeline import ReconstructionOptions, reconstruct
+    from .pipeline import reconstruct
+    from .results import OutputOptions, ReconstructionOptions
     from .synthetic import generate_span, load_true_wires
 
     out = Path(args.output_path)
@@ -103,7 +105,8 @@ def _cmd_demo(args: argparse.Namespace) -> int:
         span_dir / "images",
         span_dir / "sparse" / "0",
         out / "result",
-        ReconstructionOptions(show_progress=not args.quiet, report=True, las=True),
+        ReconstructionOptions(show_progress=not args.quiet),
+        OutputOptions(report=True, las=True),
     )
     t_run = time.perf_counter() - t0
     truth = load_true_wires(span_dir / "truth" / "wires.json")
@@ -140,64 +143,101 @@ def _parse_bool(text: str) -> bool:
     raise argparse.ArgumentTypeError(f"{text!r} is not a boolean (use true or false)")
 
 
+def _flag_kwargs(hint: Any, default: Any, dest: str, help_text: str) -> dict[str, Any] | None:
+    """argparse keywords for one option field from its type (None: not a command-line type)."""
+    optional = isinstance(hint, types.UnionType) and type(None) in typing.get_args(hint)
+    base = next(a for a in typing.get_args(hint) if a is not type(None)) if optional else hint
+    kwargs: dict[str, Any] = {"default": argparse.SUPPRESS, "dest": dest, "help": help_text}
+    if base is bool:
+        kwargs["type"] = _parse_bool
+    elif isinstance(base, type) and issubclass(base, enum.Enum):
+        kwargs.update(type=base, choices=list(base))
+    elif base in (int, float, str, Path):
+        kwargs["type"] = base
+    else:
+        return None
+    if optional:
+        inner = kwargs["type"]
+        kwargs["type"] = lambda t, inner=inner: None if t.lower() == "none" else inner(t)
+    return kwargs
+
+
 def _add_option_flags(p: argparse.ArgumentParser, options_cls: type) -> None:
-    """One ``--stage.field`` flag per field of each stage's options (COLMAP's Section.option)."""
-    for stage in dataclasses.fields(options_cls):
-        stage_cls = typing.get_type_hints(options_cls)[stage.name]
-        if not dataclasses.is_dataclass(stage_cls):
+    """The flags of an options dataclass: ``--field`` for each of its own values (a flag of
+    its own for a yes/no that is off by default: ``--las``), ``--stage.field`` for each field
+    of each stage's options (COLMAP's Section.option)."""
+    hints = typing.get_type_hints(options_cls)
+    default_obj = options_cls()
+    for f in dataclasses.fields(options_cls):
+        if f.name == "show_progress":  # set by --quiet
             continue
-        group = p.add_argument_group(f"{stage.name} options")
-        hints = typing.get_type_hints(stage_cls)
-        default_obj = stage_cls()  # type: ignore[operator]
-        for f in dataclasses.fields(stage_cls):
-            if f.name == "show_progress":  # set by --quiet
-                continue
-            hint = hints[f.name]
-            optional = isinstance(hint, types.UnionType) and type(None) in typing.get_args(hint)
-            base = (
-                next(a for a in typing.get_args(hint) if a is not type(None)) if optional else hint
+        hint = hints[f.name]
+        if dataclasses.is_dataclass(hint):
+            _add_stage_flags(p, f.name, hint)
+            continue
+        default = getattr(default_obj, f.name)
+        help_text = f.metadata.get("help", "")
+        if hint is bool and default is False:
+            p.add_argument(
+                f"--{f.name}", action="store_true", default=argparse.SUPPRESS, help=help_text
             )
-            default = getattr(default_obj, f.name)
-            kwargs: dict[str, Any] = {
-                "default": argparse.SUPPRESS,
-                "dest": f"{stage.name}.{f.name}",
-                "help": f"(default {default})",
-            }
-            if base is bool:
-                kwargs["type"] = _parse_bool
-            elif isinstance(base, type) and issubclass(base, enum.Enum):
-                kwargs.update(type=base, choices=list(base))
-            elif base in (int, float, str):
-                kwargs["type"] = base
-            else:
-                continue
-            if optional:
-                inner = kwargs["type"]
-                kwargs["type"] = lambda t, inner=inner: None if t.lower() == "none" else inner(t)
-            group.add_argument(f"--{stage.name}.{f.name}", **kwargs)
+            continue
+        kwargs = _flag_kwargs(hint, default, f.name, f"{help_text} (default {default})".strip())
+        if kwargs is not None:
+            p.add_argument(f"--{f.name}", **kwargs)
+
+
+def _add_stage_flags(p: argparse.ArgumentParser, stage: str, stage_cls: type) -> None:
+    group = p.add_argument_group(f"{stage} options")
+    hints = typing.get_type_hints(stage_cls)
+    default_obj = stage_cls()
+    for f in dataclasses.fields(stage_cls):
+        if f.name == "show_progress":
+            continue
+        default = getattr(default_obj, f.name)
+        kwargs = _flag_kwargs(hints[f.name], default, f"{stage}.{f.name}", f"(default {default})")
+        if kwargs is not None:
+            group.add_argument(f"--{stage}.{f.name}", **kwargs)
+
+
+def _options_from_flags(args: argparse.Namespace, options_cls: type, **given: Any) -> Any:
+    """``options_cls`` built from the flags (defaults where none was given), each stage
+    constructed with its values so that its checks run; a value out of range is an
+    :class:`OptionError` naming the flag."""
+    flags = vars(args)
+    kwargs = dict(given)
+    for f in dataclasses.fields(options_cls):
+        if f.name in kwargs or f.name == "show_progress":
+            continue
+        stage_cls = typing.get_type_hints(options_cls)[f.name]
+        if isinstance(stage_cls, type) and dataclasses.is_dataclass(stage_cls):
+            values = {k.split(".", 1)[1]: v for k, v in flags.items() if k.startswith(f"{f.name}.")}
+            try:
+                kwargs[f.name] = stage_cls(**values)
+            except OptionError as e:
+                raise e.within(f"--{f.name}") from None
+        elif f.name in flags:
+            kwargs[f.name] = flags[f.name]
+    try:
+        return options_cls(**kwargs)
+    except OptionError as e:
+        raise OptionError(f"--{e.name}", e.value, e.expected) from None
 
 
 def _reconstruction_options(args: argparse.Namespace) -> Any:
-    from .pipeline import ReconstructionOptions
+    from .results import ReconstructionOptions
 
-    options = ReconstructionOptions(
-        show_progress=not args.quiet,
-        debug=getattr(args, "debug", False),
-        skip_bad_images=args.skip_bad_images,
-        output_crs=getattr(args, "output_crs", None),
-        min_clearance_m=getattr(args, "min_clearance_m", None),
-        dense_path=getattr(args, "dense_path", None),
-        las=getattr(args, "las", False),
-        report=getattr(args, "report", False),
+    options = _options_from_flags(args, ReconstructionOptions, show_progress=not args.quiet)
+    sfm = options.sfm
+    return dataclasses.replace(
+        options, sfm=dataclasses.replace(sfm, georeference=_georef_options(args))
     )
-    options.sfm.georeference = _georef_options(args)
-    for key, value in vars(args).items():
-        if "." in key:
-            stage, name = key.split(".", 1)
-            setattr(getattr(options, stage), name, value)
-    if getattr(args, "wire_azimuth_deg", None) is not None:
-        options.pairs.wire_azimuth_deg = args.wire_azimuth_deg
-    return options
+
+
+def _output_options(args: argparse.Namespace) -> Any:
+    from .results import OutputOptions
+
+    return _options_from_flags(args, OutputOptions)
 
 
 def _add_georef_flags(p: argparse.ArgumentParser) -> None:
@@ -244,21 +284,24 @@ def _lat_lon_alt(text: str) -> tuple[float, float, float]:
 
 
 def _georef_options(args: argparse.Namespace) -> GeoreferenceOptions:
-    return GeoreferenceOptions(
-        use_gps=args.use_gps,
-        origin_wgs84=args.origin_wgs84,
-        max_error_m=args.alignment_max_error,
-        ref_images_path=args.ref_images_path,
-        ref_is_gps=args.ref_is_gps,
-        scale_m_per_unit=args.scale_m_per_unit,
-    )
+    flag = {"max_error_m": "alignment_max_error"}
+    try:
+        return GeoreferenceOptions(
+            use_gps=args.use_gps,
+            origin_wgs84=args.origin_wgs84,
+            max_error_m=args.alignment_max_error,
+            ref_images_path=args.ref_images_path,
+            ref_is_gps=args.ref_is_gps,
+            scale_m_per_unit=args.scale_m_per_unit,
+        )
+    except OptionError as e:
+        raise OptionError(f"--{flag.get(e.name, e.name)}", e.value, e.expected) from None
 
 
 def _cmd_sfm(args: argparse.Namespace) -> int:
     from .sfm import run_sfm
 
-    options = _reconstruction_options(args).sfm
-    options.show_progress = not args.quiet
+    options = dataclasses.replace(_reconstruction_options(args).sfm, show_progress=not args.quiet)
     result = run_sfm(args.image_path, args.output_path, options, args.skip_bad_images)
     print(f"wrote {result.model_path}\n{result.summary()}")
     return 0
@@ -291,7 +334,11 @@ def _cmd_reconstruct(args: argparse.Namespace) -> int:
     if args.image_path is None and args.input_path is None:
         raise InputError("give --image_path (and --input_path, or SfM runs first)")
     result = reconstruct(
-        args.image_path, args.input_path, args.output_path, _reconstruction_options(args)
+        args.image_path,
+        args.input_path,
+        args.output_path,
+        _reconstruction_options(args),
+        _output_options(args),
     )
     units = "m" if result.georeference is not None else " units"
     print(
@@ -307,11 +354,11 @@ def _cmd_reconstruct(args: argparse.Namespace) -> int:
             f"{m.clearance_3d_m:.2f}{units} 3D, {len(w.point_indices)} points, "
             f"rms {w.rms_residual:.3f}{units}{flag}"
         )
-    if args.min_clearance_m is not None:
+    if result.options is not None and result.options.min_clearance_m is not None:
         n = sum(1 for m in result.measures if m.flagged)
         print(
             f"clearance: {n} of {len(result.measures)} wires come closer than "
-            f"{args.min_clearance_m:g}{units} to the ground"
+            f"{result.options.min_clearance_m:g}{units} to the ground"
         )
     return 0
 
@@ -344,7 +391,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_synthetic_flags(demo, default_scale=0.5)
     demo.set_defaults(func=_cmd_demo)
 
-    from .pipeline import ReconstructionOptions
+    from .results import OutputOptions, ReconstructionOptions
 
     sfm = sub.add_parser("sfm", help="orient the images with pycolmap SfM (+ georeferencing)")
     sfm.add_argument("--image_path", type=Path, required=True)
@@ -367,40 +414,9 @@ def build_parser() -> argparse.ArgumentParser:
         "without it SfM runs first and writes OUTPUT/sparse",
     )
     rec.add_argument("--output_path", type=Path, required=True)
-    rec.add_argument(
-        "--output_crs",
-        default=None,
-        help="write coordinates in a projected CRS: 'utm' (the zone of the site) or "
-        "'EPSG:…'; needs a model georeferenced from GPS",
-    )
-    rec.add_argument(
-        "--dense_path",
-        type=Path,
-        default=None,
-        help="dense cloud (fused.ply): its ground for the clearance; the wires are merged "
-        "into it as OUTPUT/merged.ply",
-    )
-    rec.add_argument("--las", action="store_true", help="also write wires.las (LAS 1.4)")
-    rec.add_argument(
-        "--report", action="store_true", help="also write OUTPUT/report/ (figures + HTML)"
-    )
-    rec.add_argument(
-        "--min_clearance_m",
-        type=float,
-        default=None,
-        help="flag the wire stretches that come closer than this to the ground (vertically)",
-    )
-    _add_common_input_flags(rec)
     _add_georef_flags(rec)
-    rec.add_argument(
-        "--wire_azimuth_deg",
-        type=float,
-        default=None,
-        help="the wires' direction, degrees clockwise from north (+y); "
-        "default: estimated from the images",
-    )
-    rec.add_argument("--debug", action="store_true", help="also write primitives.ply")
     _add_option_flags(rec, ReconstructionOptions)
+    _add_option_flags(rec, OutputOptions)
     rec.set_defaults(func=_cmd_reconstruct)
 
     fl = sub.add_parser("fill", help="merge the wires into a dense cloud (PLY, and LAS)")
@@ -444,9 +460,11 @@ def main(argv: list[str] | None = None) -> int:
 
     # COLMAP's own log (glog) is thousands of lines per run; keep its warnings only.
     pycolmap.logging.minloglevel = 1 if not args.quiet else 2
+    # The tool's own input errors (files, values, options) are one line; anything else is a
+    # bug and keeps its traceback.
     try:
         return int(args.func(args))
-    except (InputError, FileExistsError, ValueError) as exc:
+    except (InputError, FileExistsError) as exc:
         print(f"colmap-powerline: error: {exc}", file=sys.stderr)
         return 2
 

@@ -11,10 +11,13 @@ from __future__ import annotations
 import logging
 from dataclasses import dataclass
 from enum import StrEnum
+from typing import ClassVar
 
 import cv2
 import numpy as np
 import numpy.typing as npt
+
+from .options import check_limits
 
 logger = logging.getLogger(__name__)
 
@@ -42,13 +45,20 @@ class DetectOptions:
     # this share of the image width (paper: 100 px at 4000 px)
     min_component_length_px: float | None = None  # or this many px (overrides the share)
 
+    LIMITS: ClassVar[dict[str, str]] = {
+        "template_length_px": ">= 3",
+        "side_offset_px": ">= 1",
+        "angle_spread_deg": "[0, 90]",
+        "angle_step_deg": "> 0",
+        "threshold_k": "> 0",
+        "contrast_window_px": ">= 3",
+        "min_response": ">= 0",
+        "min_component_length_frac": "[0, 1]",
+        "min_component_length_px": ">= 0",
+    }
+
     def __post_init__(self) -> None:
-        if self.template_length_px < 3:
-            raise ValueError(f"{self.template_length_px=} but expected ≥ 3")
-        if self.side_offset_px < 1:
-            raise ValueError(f"{self.side_offset_px=} but expected ≥ 1")
-        if self.threshold_k <= 0:
-            raise ValueError(f"{self.threshold_k=} but expected > 0")
+        check_limits(self)
         self.polarity = Polarity(self.polarity)
 
     def min_length_px(self, image_width: int) -> float:

@@ -22,13 +22,14 @@ import math
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 import numpy.typing as npt
 import pycolmap
 
 from .errors import InputError
+from .options import check_limits
 
 logger = logging.getLogger(__name__)
 
@@ -49,6 +50,16 @@ class GeoreferenceOptions:
     ref_is_gps: bool = False  # ref_images_path holds "name lat lon alt" (WGS84) instead
     scale_m_per_unit: float | None = None  # known scale for a model without GPS
     random_seed: int = 0
+
+    LIMITS: ClassVar[dict[str, str]] = {
+        "max_error_m": "> 0",
+        "min_images": ">= 3",
+        "scale_m_per_unit": "> 0",
+        "random_seed": ">= 0",
+    }
+
+    def __post_init__(self) -> None:
+        check_limits(self)
 
 
 @dataclass

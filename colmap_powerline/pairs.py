@@ -15,12 +15,14 @@ import logging
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import ClassVar
 
 import cv2
 import numpy as np
 import numpy.typing as npt
 
 from .errors import InputError
+from .options import OptionError, check_limits
 from .scene import Scene, SceneImage, read_image
 from .verify import crossing_views
 
@@ -64,18 +66,36 @@ class PairsOptions:
     pairs_per_point: int = 2  # how many pairs should cover each part of the corridor
     border_margin_frac: float = 0.05  # corridor points this close to an image border do not count
 
+    LIMITS: ClassVar[dict[str, str]] = {
+        "candidate_tolerance_deg": "(0, 45]",
+        "max_candidates": ">= 1",
+        "line_tolerance_deg": "(0, 90)",
+        "probe_candidates": ">= 1",
+        "probe_pairs": ">= 1",
+        "probe_views": ">= 0",
+        "probe_bands": "1 or 2",
+        "num_direction_images": ">= 1",
+        "analysis_width_px": ">= 100",
+        "scan_step_deg": "(0, 45]",
+        "template_length_frac": "(0, 0.5]",
+        "corridor_margin": ">= 0",
+        "min_crossing_deg": "[0, 90]",
+        "min_base_height": "> 0",
+        "max_base_height": "> 0",
+        "target_base_height": "> 0",
+        "max_pairs": ">= 1",
+        "pairs_per_point": ">= 1",
+        "border_margin_frac": "[0, 0.5)",
+    }
+
     def __post_init__(self) -> None:
-        for name in ("max_candidates", "probe_candidates", "probe_pairs", "max_pairs"):
-            if getattr(self, name) < 1:
-                raise ValueError(f"{name}={getattr(self, name)} but expected ≥ 1")
-        if self.num_direction_images < 1:
-            raise ValueError(f"{self.num_direction_images=} but expected ≥ 1")
-        if self.probe_views < 0:
-            raise ValueError(f"{self.probe_views=} but expected ≥ 0")
-        if not 0.0 < self.line_tolerance_deg < 90.0:
-            raise ValueError(f"{self.line_tolerance_deg=} but expected in (0, 90)")
-        if self.probe_bands not in (1, 2):
-            raise ValueError(f"{self.probe_bands=} but expected 1 (densest band) or 2 (and all)")
+        check_limits(self)
+        if not self.max_base_height > self.min_base_height:
+            raise OptionError(
+                "max_base_height",
+                self.max_base_height,
+                f"> min_base_height ({self.min_base_height})",
+            )
 
 
 @dataclass(frozen=True)

@@ -29,6 +29,7 @@ from .export import export_results
 from .files import wire_colors
 from .georef import Georeference, crs_converter, crs_wkt, read_georeference
 from .las import CONDUCTOR, WIRE_CLASS, write_las
+from .options import validate
 from .pairs import (
     WIDE_CANDIDATES,
     DirectionCandidates,
@@ -43,7 +44,12 @@ from .pairs import (
 )
 from .rectify import RectifiedPair, rectify_pair
 from .report import write_report
-from .results import CorridorResult, ReconstructionOptions, ReconstructionResult
+from .results import (
+    CorridorResult,
+    OutputOptions,
+    ReconstructionOptions,
+    ReconstructionResult,
+)
 from .scene import Scene, SceneImage, load_scene, read_image, resolve_inputs
 from .sfm import run_sfm
 from .spans import find_spans
@@ -428,6 +434,10 @@ def primitives_for_pairs(
             c, n_px = _detect_rectified(geom, side, image, corridor, options.detect)
             centres.append(c)
         prims = triangulate_pair(geom, scene, centres[0], centres[1], k, options.triangulate)
+        left = centres[0]
+        u_src, v_src = geom._source_pixels(0, np.c_[left.u, left.rows + 0.5])
+        seen = u_src > -1e4
+        prims = dataclasses.replace(prims, left_wire_px=np.c_[u_src[seen], v_src[seen]])
         logger.info(
             "pair %d %s|%s: %dx%d px rectified, %d + %d wire centres → %d primitives",
             k,
@@ -488,34 +498,45 @@ def reconstruct(
     input_path: Path | str | None,
     output_path: Path | str | None = None,
     options: ReconstructionOptions | None = None,
+    outputs: OutputOptions | None = None,
 ) -> ReconstructionResult:
-    """Reconstruct every wire of the span seen by a COLMAP model's images.
+    """Reconstruct every wire of every line seen by a COLMAP model's images, then (with
+    ``output_path``) write them: :func:`write_outputs`.
 
     Args:
         image_path: the image folder the model's image names are relative to (None: the
             ``images/`` of an undistorted workspace given as ``input_path``).
         input_path: the COLMAP sparse model (binary or text), or an undistorted COLMAP
             workspace; None runs SfM first and writes its model to ``output_path/sparse``.
-        output_path: where to write wires.json, wires.ply, wire_points.ply (None: nothing).
-        options: the options of every stage.
+        output_path: where to write the outputs (None: nothing is written).
+        options: the options of every stage (not changed).
+        outputs: what is written besides the output contract's files; its dense cloud
+            also gives the ground for the clearance.
     """
     options = options or ReconstructionOptions()
+    outputs = outputs or OutputOptions()
+    validate(options)
+    validate(outputs)
+    if outputs.dense_path is not None:
+        open_ply(outputs.dense_path)  # a missing or unreadable cloud stops the run now
     timings: dict[str, float] = {}
     if input_path is None:
         if output_path is None or image_path is None:
             raise InputError("running SfM needs an image folder and an output folder")
-        options.sfm.show_progress = options.show_progress
+        sfm_options = dataclasses.replace(options.sfm, show_progress=options.show_progress)
         sfm = run_sfm(
-            image_path, Path(output_path) / "sparse", options.sfm, options.skip_bad_images
+            image_path, Path(output_path) / "sparse", sfm_options, options.skip_bad_images
         )
         timings.update({f"sfm_{k}": v for k, v in sfm.timings_s.items()})
         input_path = sfm.model_path
     input_path, image_path = resolve_inputs(image_path, input_path)
     georef = read_georeference(input_path)
-    if options.output_crs and (georef is None or georef.origin_wgs84 is None):
-        raise InputError(
-            f"{input_path}: --output_crs needs a model georeferenced from GPS (georef.json)"
-        )
+    if outputs.output_crs:
+        if georef is None or georef.origin_wgs84 is None:
+            raise InputError(
+                f"{input_path}: --output_crs needs a model georeferenced from GPS (georef.json)"
+            )
+        _crs_function(georef, outputs.output_crs)  # an unknown CRS stops the run now
     t0 = time.perf_counter()
     scene = load_scene(input_path, image_path, skip_bad_images=options.skip_bad_images)
     timings["scene"] = time.perf_counter() - t0
@@ -600,8 +621,8 @@ def reconstruct(
     timings["coverage"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     ground, source = scene.ground, "sparse points"
-    if options.dense_path is not None:
-        ground, source = dense_ground(open_ply(options.dense_path)), "dense cloud"
+    if outputs.dense_path is not None:
+        ground, source = dense_ground(open_ply(outputs.dense_path)), "dense cloud"
     measures = [measure_wire(w, ground, source, options.min_clearance_m) for w in wires]
     assign_kinds(measures)
     timings["clearance"] = time.perf_counter() - t0
@@ -622,6 +643,11 @@ def reconstruct(
         placement=spans.placement,
         line_supports=spans.supports,
         corridors=part.corridors,
+        ground=ground,
+        ground_from=outputs.dense_path,
+        options=options,
+        image_path=Path(image_path),
+        input_path=Path(input_path),
     )
     if options.min_clearance_m is not None:
         flagged = [m for m in measures if m.flagged]
@@ -634,50 +660,68 @@ def reconstruct(
             sum(len(m.flagged) for m in flagged),
         )
     if output_path is not None:
-        t0 = time.perf_counter()
-        crs = _crs_function(georef, options.output_crs)
-        result.outputs = export_results(
-            Path(output_path),
-            wires=wires,
-            points=verified.pts_in_world,
-            labels=labels,
-            primitives=np.concatenate([p.pts_in_world for p in primitives])
-            if options.debug
-            else None,
-            metadata=_metadata(result, image_path, input_path, options),
-            ground_height=scene.ground_height,
-            to_crs=crs,
-            measures=measures,
-            supports=supports,
-            coverage=coverage,
-            placement=spans.placement,
-            line_supports=spans.supports,
-        )
-        wkt = crs_wkt(georef, options.output_crs)
-        if options.las:
-            result.outputs["wires.las"] = _write_wires_las(
-                Path(output_path), result, crs[0] if crs else None, wkt
-            )
-        if options.dense_path is not None:
-            merged = fill(
-                options.dense_path,
-                result.outputs["wires.json"],
-                Path(output_path) / "merged.ply",
-                las=options.las,
-                crs_wkt=wkt,
-                ground=ground,
-            )
-            result.outputs["merged.ply"] = merged.output_path
-            if merged.las_path:
-                result.outputs["merged.las"] = merged.las_path
-        timings["export"] = time.perf_counter() - t0
-        if options.report:
-            t0 = time.perf_counter()
-            result.outputs["report"] = write_report(
-                result, Path(output_path), options, georef is not None, ground
-            )
-            timings["report"] = time.perf_counter() - t0
+        write_outputs(result, Path(output_path), outputs)
     return result
+
+
+def write_outputs(
+    result: ReconstructionResult, output_path: Path | str, outputs: OutputOptions | None = None
+) -> dict[str, Path]:
+    """Write a reconstruction: the output contract's files (wires.json, wires.csv,
+    supports.csv, wires.ply, wire_points.ply) and what ``outputs`` asks for besides (LAS,
+    the report, the wires merged into a dense cloud, primitives.ply). Returns the files
+    written (also kept in ``result.outputs``)."""
+    outputs = outputs or OutputOptions()
+    validate(outputs)
+    options = result.options or ReconstructionOptions()
+    out, georef, timings = Path(output_path), result.georeference, result.timings_s
+    if outputs.output_crs and (georef is None or georef.origin_wgs84 is None):
+        raise InputError("--output_crs needs a model georeferenced from GPS (georef.json)")
+    t0 = time.perf_counter()
+    crs = _crs_function(georef, outputs.output_crs)
+    result.outputs = export_results(
+        out,
+        wires=result.wires,
+        points=result.verified.pts_in_world,
+        labels=result.labels,
+        primitives=np.concatenate([p.pts_in_world for p in result.primitives])
+        if outputs.debug and result.primitives
+        else None,
+        metadata=_metadata(result, options, outputs),
+        ground_height=result.scene.ground_height,
+        sample_step=options.wires.sample_step,
+        to_crs=crs,
+        measures=result.measures,
+        supports=result.supports,
+        coverage=result.coverage,
+        placement=result.placement,
+        line_supports=result.line_supports,
+    )
+    wkt = crs_wkt(georef, outputs.output_crs)
+    if outputs.las:
+        result.outputs["wires.las"] = _write_wires_las(out, result, crs[0] if crs else None, wkt)
+    ground = result.ground
+    if outputs.dense_path is not None:
+        same = result.ground_from is not None and Path(result.ground_from) == Path(
+            outputs.dense_path
+        )
+        merged = fill(
+            outputs.dense_path,
+            result.outputs["wires.json"],
+            out / "merged.ply",
+            las=outputs.las,
+            crs_wkt=wkt,
+            ground=ground if same else None,
+        )
+        result.outputs["merged.ply"] = merged.output_path
+        if merged.las_path:
+            result.outputs["merged.las"] = merged.las_path
+    timings["export"] = time.perf_counter() - t0
+    if outputs.report:
+        t0 = time.perf_counter()
+        result.outputs["report"] = write_report(result, out, options, georef is not None, ground)
+        timings["report"] = time.perf_counter() - t0
+    return result.outputs
 
 
 def reconstruct_corridor(
@@ -1590,10 +1634,7 @@ def _crs_function(
 
 
 def _metadata(
-    result: ReconstructionResult,
-    image_path: Path | str,
-    input_path: Path | str,
-    options: ReconstructionOptions,
+    result: ReconstructionResult, options: ReconstructionOptions, outputs: OutputOptions
 ) -> dict[str, Any]:
     georef = result.georeference
 
@@ -1601,8 +1642,8 @@ def _metadata(
         return json.loads(json.dumps(dataclasses.asdict(obj), default=str))
 
     return {
-        "input_model": str(input_path),
-        "image_path": str(image_path),
+        "input_model": str(result.input_path),
+        "image_path": str(result.image_path),
         "units": "metres" if georef is not None else "model units (not georeferenced)",
         "georeference": georef.to_json() if georef is not None else None,
         "wire_azimuth_deg": result.corridor.azimuth_deg,
@@ -1621,4 +1662,5 @@ def _metadata(
         "images_decoded": len(result.decoded),
         "timings_s": result.timings_s,
         "options": plain(options),
+        "outputs": plain(outputs),
     }

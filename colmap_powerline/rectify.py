@@ -12,12 +12,14 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass
+from typing import ClassVar
 
 import cv2
 import numpy as np
 import numpy.typing as npt
 
 from .errors import InputError, PairGeometryError
+from .options import check_limits
 from .scene import Scene, SceneImage
 
 logger = logging.getLogger(__name__)
@@ -31,6 +33,15 @@ class RectifyOptions:
     depth_margin: float = 0.05  # relative margin on the scene's depth range
     resolution_scale: float = 1.0  # rectified focal length relative to the mean of the two cameras
     max_side_px: int = 8000  # refuse pairs whose rectified images would be larger
+
+    LIMITS: ClassVar[dict[str, str]] = {
+        "depth_margin": "[0, 1]",
+        "resolution_scale": "(0, 4]",
+        "max_side_px": ">= 100",
+    }
+
+    def __post_init__(self) -> None:
+        check_limits(self)
 
 
 @dataclass(frozen=True, eq=False)

@@ -4,8 +4,9 @@
   height, and the supports found (towers and poles, by kind, numbered).
 - ``profile_<id>.png``: per wire, its height and the ground below it along the span, the
   clearance, the chord and the sag, and the stretches below ``min_clearance_m`` in red.
-- ``pair_<k>.png``: the left image of each pair, with the wire pixels the detector found
-  there and the final wires projected onto it.
+- ``pair_<k>.png``: the left image of each pair (decoded at a reduced size), with the wire
+  centres the pair's detection found there (kept by the pipeline, not detected again) and
+  the final wires projected onto it.
 - ``cameras.png``: camera positions, the chosen pairs and the wire corridor.
 """
 
@@ -188,28 +189,37 @@ def _profile(
     return _save(fig, path)
 
 
-def _pair_overlay(
-    result: ReconstructionResult, k: int, options: ReconstructionOptions, path: Path
-) -> Path:
-    from .detect import detect_wires
+def _reduced_grey(path: Path, width: int, target_px: int = 1600) -> tuple[np.ndarray, int]:
+    """The image decoded in grey at 1/2, 1/4 or 1/8 of its size (libjpeg scales while it
+    decodes: a fraction of a full decode), about ``target_px`` wide; and the factor."""
+    import cv2
+
     from .scene import read_image
 
+    flags = {1: cv2.IMREAD_GRAYSCALE, 2: cv2.IMREAD_REDUCED_GRAYSCALE_2}
+    flags |= {4: cv2.IMREAD_REDUCED_GRAYSCALE_4, 8: cv2.IMREAD_REDUCED_GRAYSCALE_8}
+    factor = max((f for f in flags if width / f >= target_px), default=1)
+    return read_image(path, flags[factor]), factor
+
+
+def _pair_overlay(result: ReconstructionResult, k: int, path: Path) -> Path:
+    """The left image of pair ``k`` with the wire centres its detection found (kept by the
+    pipeline: nothing is detected again) and every wire projected."""
     view = result.pairs[k].left
-    image = read_image(view.path)
-    grey = image.mean(axis=2)
-    height = result.corridor.height
-    c = result.corridor.centre_xy
-    az = np.deg2rad(result.corridor.azimuth_deg)
-    d = np.array([np.sin(az), np.cos(az), 0.0])
-    p0 = np.r_[c, height]
-    uv, _, ok = view.project(np.stack([p0 - 5 * d, p0 + 5 * d]))
-    direction = float(np.degrees(np.arctan2(*(uv[1] - uv[0])[::-1])) % 180) if ok.all() else 0.0
-    mask = detect_wires(image, direction, options.detect).mask
-    step = max(1, image.shape[1] // 1600)
+    grey, _ = _reduced_grey(view.path, view.width)
+    found = result.primitives[k].left_wire_px if k < len(result.primitives) else None
     fig, ax = plt.subplots(figsize=(12, 9))
-    ax.imshow(grey[::step, ::step], cmap="gray", extent=(0, image.shape[1], image.shape[0], 0))
-    ys, xs = np.nonzero(mask)
-    ax.scatter(xs, ys, s=0.2, c="gold", alpha=0.35, label="detected wire pixels", linewidths=0)
+    ax.imshow(grey, cmap="gray", extent=(0, view.width, view.height, 0))
+    if found is not None and len(found):
+        ax.scatter(
+            found[:, 0],
+            found[:, 1],
+            s=0.2,
+            c="gold",
+            alpha=0.35,
+            label="wire centres found (rectified rows)",
+            linewidths=0,
+        )
     for w in result.wires:
         uv, _, ok = view.project(w.polyline(0.2))
         ax.plot(
@@ -221,8 +231,8 @@ def _pair_overlay(
             alpha=0.9,
             label=f"wire {w.wire_id}",
         )
-    ax.set_xlim(0, image.shape[1])
-    ax.set_ylim(image.shape[0], 0)
+    ax.set_xlim(0, view.width)
+    ax.set_ylim(view.height, 0)
     ax.set_xlabel("image column (px)")
     ax.set_ylabel("image row (px)")
     p = result.pairs[k]
@@ -340,7 +350,7 @@ def write_report(
         figures.append(
             (
                 f"Pair {k}: detections and wires",
-                _pair_overlay(result, k, options, out / f"pair_{k}.png"),
+                _pair_overlay(result, k, out / f"pair_{k}.png"),
             )
         )
     rows = "".join(

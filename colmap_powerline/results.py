@@ -6,14 +6,16 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import ClassVar
 
 import numpy as np
 import numpy.typing as npt
 
-from .clearance import WireMeasures
+from .clearance import GroundModel, WireMeasures
 from .coverage import WireCoverage
 from .detect import DetectOptions
 from .georef import Georeference
+from .options import check_limits
 from .pairs import ImagePair, PairsOptions, WireCorridor
 from .rectify import RectifyOptions
 from .scene import Scene
@@ -38,16 +40,55 @@ class ReconstructionOptions:
     trace: TraceOptions = field(default_factory=TraceOptions)
     spans: SpanOptions = field(default_factory=SpanOptions)
     sfm: SfmOptions = field(default_factory=SfmOptions)  # used when no model is given
-    skip_bad_images: bool = False  # drop missing/undecodable images with a warning
-    min_clearance_m: float | None = None  # flag wire stretches closer to the ground
-    dense_path: Path | None = None  # dense cloud: its ground for the clearance, and the
-    # wires merged into it (OUT/merged.ply)
-    las: bool = False  # also write OUT/wires.las (and OUT/merged.las with dense_path)
-    report: bool = False  # also write OUT/report/ (figures + index.html)
-    output_crs: str | None = None  # write coordinates in this projected CRS ("utm" or
-    # "EPSG:…"); needs a model georeferenced from GPS
-    show_progress: bool = True  # progress bars on the loops over pairs and images
-    debug: bool = False  # also write primitives.ply (every candidate before verification)
+    skip_bad_images: bool = field(
+        default=False,
+        metadata={"help": "skip missing or undecodable images with a warning instead of stopping"},
+    )
+    min_clearance_m: float | None = field(
+        default=None,
+        metadata={
+            "help": "flag the wire stretches that come closer than this to the ground (vertically)"
+        },
+    )
+    show_progress: bool = True  # progress bars on the loops over pairs and images (--quiet)
+
+    LIMITS: ClassVar[dict[str, str]] = {"min_clearance_m": ">= 0"}
+
+    def __post_init__(self) -> None:
+        check_limits(self)
+
+
+@dataclass(kw_only=True)
+class OutputOptions:
+    """What :func:`colmap_powerline.write_outputs` writes besides wires.json, wires.csv,
+    supports.csv, wires.ply and wire_points.ply (the algorithm does not read these, except
+    the dense cloud's ground for the clearance)."""
+
+    dense_path: Path | None = field(
+        default=None,
+        metadata={
+            "help": "dense cloud (fused.ply): its ground for the clearance; the wires are "
+            "merged into it as OUTPUT/merged.ply"
+        },
+    )
+    output_crs: str | None = field(
+        default=None,
+        metadata={
+            "help": "write coordinates in a projected CRS: 'utm' (the zone of the site) or "
+            "'EPSG:…'; needs a model georeferenced from GPS"
+        },
+    )
+    las: bool = field(
+        default=False,
+        metadata={"help": "also write wires.las (LAS 1.4; and merged.las with --dense_path)"},
+    )
+    report: bool = field(
+        default=False, metadata={"help": "also write OUTPUT/report/ (figures + HTML)"}
+    )
+    debug: bool = field(
+        default=False,
+        metadata={"help": "also write primitives.ply (every candidate before verification)"},
+    )
 
 
 @dataclass(eq=False)
@@ -70,6 +111,11 @@ class ReconstructionResult:
     placement: list[WireSpan] = field(default_factory=list)  # each wire's line and span
     line_supports: list[LineSupport] = field(default_factory=list)  # towers and poles
     corridors: list[WireCorridor] = field(default_factory=list)  # every line's (or leg's)
+    ground: GroundModel | None = None  # the ground the clearance was measured from
+    ground_from: Path | None = None  # the dense cloud it came from (None: sparse points)
+    options: ReconstructionOptions | None = None  # the options it ran with
+    image_path: Path | None = None  # where its images were read
+    input_path: Path | None = None  # the model it started from
 
 
 @dataclass(eq=False)

@@ -37,7 +37,7 @@ def cam_from_img(camera: pycolmap.Camera, uv: FloatArray) -> FloatArray:
     """(N, 2) pixels → (N, 2) normalised camera coordinates through pycolmap's lens model."""
     xy = camera.cam_from_img(np.asarray(uv, dtype=np.float64).reshape(-1, 2))
     if xy is None:
-        raise ValueError(f"pycolmap could not undistort pixels with camera {camera.model_name}")
+        raise InputError(f"pycolmap could not undistort pixels with camera {camera.model_name}")
     return np.asarray(xy, dtype=np.float64)
 
 

@@ -21,6 +21,7 @@ import time
 from collections import defaultdict
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import ClassVar
 
 import numpy as np
 import pycolmap
@@ -29,6 +30,7 @@ from tqdm import tqdm
 
 from .errors import InputError
 from .georef import Georeference, GeoreferenceOptions, georeference_model
+from .options import check_limits
 
 logger = logging.getLogger(__name__)
 
@@ -62,6 +64,19 @@ class SfmOptions:
     random_seed: int = 0  # makes the mapper repeatable
     georeference: GeoreferenceOptions = field(default_factory=GeoreferenceOptions)
     show_progress: bool = True
+
+    LIMITS: ClassVar[dict[str, str]] = {
+        "exhaustive_max_images": ">= 2",
+        "spatial_neighbors": ">= 1",
+        "sequential_overlap": ">= 1",
+        "max_image_size": ">= 100",
+        "max_num_features": ">= 100",
+        "num_threads": "-1 or >= 1",
+        "random_seed": ">= 0",
+    }
+
+    def __post_init__(self) -> None:
+        check_limits(self)
 
 
 @dataclass

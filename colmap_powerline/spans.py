@@ -33,6 +33,7 @@ import logging
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import ClassVar
 
 import cv2
 import numpy as np
@@ -40,6 +41,7 @@ import numpy.typing as npt
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
+from .options import check_limits
 from .pairs import WireCorridor, axial_diff_deg
 from .scene import read_image
 from .support import _strips
@@ -73,18 +75,17 @@ class SpanOptions:
     same_conductor_m: float = 1.0  # attachments of two spans' wires this close at a
     # support are one conductor (conductors hang 1-7 m apart)
 
+    LIMITS: ClassVar[dict[str, str]] = {
+        "min_kink_deg": "(0, 90)",
+        "min_improvement": ">= 1",
+        "min_piece_m": "> 0",
+        "support_radius": "> 0",
+        "max_meeting_gap": "> 0",
+        "same_conductor_m": "> 0",
+    }
+
     def __post_init__(self) -> None:
-        for name in (
-            "min_kink_deg",
-            "min_piece_m",
-            "support_radius",
-            "max_meeting_gap",
-            "same_conductor_m",
-        ):
-            if not getattr(self, name) > 0:
-                raise ValueError(f"{name}={getattr(self, name)} but expected > 0")
-        if not self.min_improvement >= 1:
-            raise ValueError(f"{self.min_improvement=} but expected ≥ 1")
+        check_limits(self)
 
 
 @dataclass(frozen=True)

@@ -21,12 +21,13 @@ from __future__ import annotations
 import logging
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 import numpy.typing as npt
 from scipy.spatial import cKDTree
 
+from .options import check_limits
 from .scene import Scene
 from .verify import CONTROL_OFFSETS_PX, ViewWirePixels, crossing_views
 from .wires import FittedWire
@@ -51,17 +52,16 @@ class SupportOptions:
     # this share as often as the views see true wires (a false pairing lands on wires only
     # in the views along one of its cameras, and not where the wires slope)
 
+    LIMITS: ClassVar[dict[str, str]] = {
+        "min_confidence": "[0.5, 1)",
+        "correlation_length_px": ">= 1",
+        "min_projected_px": ">= 1",
+        "min_pair_share": "(0, 1]",
+        "min_hit_share": "[0, 1]",
+    }
+
     def __post_init__(self) -> None:
-        if not 0.5 <= self.min_confidence < 1:
-            raise ValueError(f"{self.min_confidence=} but expected in [0.5, 1)")
-        if self.correlation_length_px < 1:
-            raise ValueError(f"{self.correlation_length_px=} but expected ≥ 1 px")
-        if self.min_projected_px < 1:
-            raise ValueError(f"{self.min_projected_px=} but expected ≥ 1 px")
-        if not 0 < self.min_pair_share <= 1:
-            raise ValueError(f"{self.min_pair_share=} but expected in (0, 1]")
-        if not 0 <= self.min_hit_share <= 1:
-            raise ValueError(f"{self.min_hit_share=} but expected in [0, 1]")
+        check_limits(self)
 
     def accepts(self, confidence: float | None) -> bool:
         """Whether a wire with this confidence is kept."""

@@ -35,6 +35,7 @@ from PIL import ExifTags, Image
 from scipy import ndimage
 from tqdm import tqdm
 
+from .errors import InputError
 from .render import draw_thin_polyline, fbm, periodic_noise, remap
 from .scene import SceneImage, cam_from_img
 
@@ -129,28 +130,28 @@ class SyntheticSpanOptions:
 
     def __post_init__(self) -> None:
         if not 0.05 <= self.scale <= 1.0:
-            raise ValueError(f"{self.scale=} but expected 0.05 ≤ scale ≤ 1")
+            raise InputError(f"{self.scale=} but expected 0.05 ≤ scale ≤ 1")
         if self.num_shield_wires not in (1, 2):
-            raise ValueError(f"{self.num_shield_wires=} but expected 1 or 2")
+            raise InputError(f"{self.num_shield_wires=} but expected 1 or 2")
         self.background = Background(self.background)
         self.flight = FlightPattern(self.flight)
         self.layout = Layout(self.layout)
         legs = (FlightPattern.CORRIDOR, FlightPattern.ALONG4)
         if self.layout is Layout.ANGLE and self.flight not in legs:
-            raise ValueError(
+            raise InputError(
                 f"layout angle is flown along its legs: flight {self.flight.value!r} but "
                 "expected corridor or along4"
             )
         if self.layout is Layout.CROSSING and self.flight is not FlightPattern.GRID:
-            raise ValueError(
+            raise InputError(
                 f"layout crossing is an area survey: flight {self.flight.value!r} but expected grid"
             )
         if not 0.0 < self.turn_deg <= 60.0:
-            raise ValueError(f"{self.turn_deg=} but expected 0 < turn_deg ≤ 60")
+            raise InputError(f"{self.turn_deg=} but expected 0 < turn_deg ≤ 60")
         if not 20.0 <= self.crossing_deg <= 90.0:
-            raise ValueError(f"{self.crossing_deg=} but expected 20 ≤ crossing_deg ≤ 90")
+            raise InputError(f"{self.crossing_deg=} but expected 20 ≤ crossing_deg ≤ 90")
         if self.side_overlap is not None and not 0.0 <= self.side_overlap < 1.0:
-            raise ValueError(f"{self.side_overlap=} but expected 0 ≤ side_overlap < 1")
+            raise InputError(f"{self.side_overlap=} but expected 0 ≤ side_overlap < 1")
 
     @property
     def flight_side_overlap(self) -> float:
@@ -741,7 +742,7 @@ def _bake_ortho(
     x0, y0, x1, y1 = domain
     w, h = int((x1 - x0) / res) + 1, int((y1 - y0) / res) + 1
     if max(w, h) >= 32000:
-        raise ValueError(f"ground raster of {w}x{h} px is too large for OpenCV; reduce the scene")
+        raise InputError(f"ground raster of {w}x{h} px is too large for OpenCV; reduce the scene")
     gx, gy = np.meshgrid(
         x0 + res * np.arange(w, dtype=np.float32), y0 + res * np.arange(h, dtype=np.float32)
     )

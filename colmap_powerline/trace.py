@@ -60,6 +60,7 @@ from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
+from typing import ClassVar
 
 import cv2
 import numpy as np
@@ -68,6 +69,7 @@ from scipy.spatial import cKDTree
 from scipy.stats import chi2
 
 from .detect import DetectOptions, contrast_threshold
+from .options import check_limits
 from .scene import Scene, SceneImage, read_image
 from .verify import (
     WireMaskFn,
@@ -134,15 +136,15 @@ class TraceOptions:
     loose: bool = True  # within the stretch confirmed, of a wire the views find, take a
     # response peak that stands out as the wire centre (no length filter)
 
+    LIMITS: ClassVar[dict[str, str]] = {
+        "step_px": "> 0",
+        "reach_px": "[0.5, 20]",
+        "extend": ">= 0",
+        "max_rounds": ">= 0",
+    }
+
     def __post_init__(self) -> None:
-        if not self.step_px > 0:
-            raise ValueError(f"{self.step_px=} but expected > 0")
-        if not 0.5 <= self.reach_px <= 20:
-            raise ValueError(f"{self.reach_px=} but expected in [0.5, 20] px")
-        if not self.extend >= 0:
-            raise ValueError(f"{self.extend=} but expected ≥ 0")
-        if self.max_rounds < 0:
-            raise ValueError(f"{self.max_rounds=} but expected ≥ 0")
+        check_limits(self)
 
 
 @dataclass(frozen=True, eq=False)

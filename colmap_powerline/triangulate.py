@@ -10,10 +10,12 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 import numpy.typing as npt
 
+from .options import OptionError, check_limits
 from .rectify import RectifiedPair
 from .scene import Scene
 
@@ -21,6 +23,7 @@ logger = logging.getLogger(__name__)
 
 F64 = npt.NDArray[np.float64]
 I64 = npt.NDArray[np.int64]
+F32 = npt.NDArray[np.float32]
 
 
 # Matching searches down to this far below the ground interpolated from the sparse points.
@@ -36,6 +39,21 @@ class TriangulateOptions:
     max_wire_height: float = 60.0  # highest wire above the ground (model units)
     same_polarity: bool = True  # match bright with bright and dark with dark only
     max_primitives: int = 20_000_000  # a pair with more candidates than this is skipped
+
+    LIMITS: ClassVar[dict[str, str]] = {
+        "min_wire_height": ">= 0",
+        "max_wire_height": "> 0",
+        "max_primitives": ">= 1",
+    }
+
+    def __post_init__(self) -> None:
+        check_limits(self)
+        if not self.max_wire_height > self.min_wire_height:
+            raise OptionError(
+                "max_wire_height",
+                self.max_wire_height,
+                f"> min_wire_height ({self.min_wire_height})",
+            )
 
 
 @dataclass(frozen=True, eq=False)
@@ -59,6 +77,8 @@ class Primitives:
     u_right: F64  # (N,)
     v: F64  # (N,) rectified row coordinate (pixel centre)
     pair_index: int
+    left_wire_px: F32 | None = None  # (M, 2) the wire centres found in the left image, in
+    # its own pixels (OpenCV convention): what the report draws, without detecting again
 
     def __len__(self) -> int:
         return len(self.pts_in_world)
@@ -121,8 +141,6 @@ def triangulate_pair(
         All candidate points (the primitives) of this pair.
     """
     options = options or TriangulateOptions()
-    if options.max_wire_height <= options.min_wire_height:
-        raise ValueError(f"{options.max_wire_height=} must exceed {options.min_wire_height=}")
     empty = Primitives(np.zeros((0, 3)), np.zeros(0), np.zeros(0), np.zeros(0), pair_index)
     if len(left) == 0 or len(right) == 0:
         return empty

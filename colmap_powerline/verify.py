@@ -16,6 +16,7 @@ from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
+from typing import ClassVar
 
 import cv2
 import numpy as np
@@ -23,6 +24,7 @@ import numpy.typing as npt
 from tqdm import tqdm
 
 from .detect import WireMask
+from .options import check_limits
 from .scene import Scene, SceneImage, read_image
 from .triangulate import Primitives
 
@@ -48,21 +50,18 @@ class VerifyOptions:
     # pairs' (--detect.template_length_px), as the wires' direction there comes from the
     # poses, and a faint wire over soil needs the length (0: the pairs' template)
 
+    LIMITS: ClassVar[dict[str, str]] = {
+        "tolerance_px": "(0, 20)",
+        "min_posterior": "[0.5, 1)",
+        "crossing_offset": "[0, 2)",
+        "prior_hit_rate": "(0, 1)",
+        "num_threads": ">= 1",
+        "margin_px": ">= 0",
+        "template_length_px": "0 or >= 3",
+    }
+
     def __post_init__(self) -> None:
-        if not 0.5 <= self.min_posterior < 1:
-            raise ValueError(f"{self.min_posterior=} but expected in [0.5, 1)")
-        if not 0 < self.tolerance_px < 20:
-            raise ValueError(f"{self.tolerance_px=} but expected in (0, 20) px")
-        if not 0 <= self.crossing_offset < 2:
-            raise ValueError(f"{self.crossing_offset=} but expected in [0, 2)")
-        if not 0 < self.prior_hit_rate < 1:
-            raise ValueError(f"{self.prior_hit_rate=} but expected in (0, 1)")
-        if self.num_threads < 1:
-            raise ValueError(f"{self.num_threads=} but expected ≥ 1")
-        if self.margin_px < 0:
-            raise ValueError(f"{self.margin_px=} but expected ≥ 0")
-        if self.template_length_px != 0 and self.template_length_px < 3:
-            raise ValueError(f"{self.template_length_px=} but expected 0 or ≥ 3")
+        check_limits(self)
 
 
 @dataclass(frozen=True, eq=False)

@@ -16,6 +16,7 @@ import dataclasses
 import logging
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 import numpy.typing as npt
@@ -24,6 +25,8 @@ from scipy.optimize import least_squares
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
+
+from .options import check_limits
 
 logger = logging.getLogger(__name__)
 
@@ -46,6 +49,24 @@ class WiresOptions:
     max_gap: float = 25.0  # pieces at most this far apart along the line may be merged
     max_plane_angle_deg: float = 10.0  # wire planes deviate at most this from the azimuth
     sample_step: float = 0.1  # polyline spacing of the fitted wires
+
+    LIMITS: ClassVar[dict[str, str]] = {
+        "voxel_along": "> 0",
+        "voxel_across": "> 0",
+        "link_cells": ">= 1",
+        "link_along_cells": ">= 1",
+        "min_points": ">= 3",
+        "min_length": ">= 0",
+        "max_rms": "> 0",
+        "inlier_distance": "> 0",
+        "merge_distance": "> 0",
+        "max_gap": ">= 0",
+        "max_plane_angle_deg": "(0, 90]",
+        "sample_step": "> 0",
+    }
+
+    def __post_init__(self) -> None:
+        check_limits(self)
 
 
 def _catenary(s: F64, k: float, s0: float, z0: float) -> F64:

@@ -12,22 +12,30 @@ import pytest
 from colmap_powerline.cli import main
 from colmap_powerline.evaluate import distance_to_polyline, evaluate
 from colmap_powerline.export import read_point_cloud
-from colmap_powerline.pipeline import ReconstructionOptions, reconstruct
+from colmap_powerline.pipeline import (
+    OutputOptions,
+    ReconstructionOptions,
+    reconstruct,
+    write_outputs,
+)
 from colmap_powerline.synthetic import Terrain, load_true_wires
 
 
 @pytest.fixture(scope="module")
 def run(medium_span, medium_dense, tmp_path_factory):
     out = tmp_path_factory.mktemp("out")
-    options = ReconstructionOptions(
-        show_progress=False,
-        debug=True,
-        dense_path=medium_dense,
-        las=True,
-        report=True,
-        min_clearance_m=21.0,
-    )
-    return reconstruct(medium_span.images, medium_span.sparse, out, options), out
+    options = ReconstructionOptions(show_progress=False, min_clearance_m=21.0)
+    outputs = OutputOptions(debug=True, dense_path=medium_dense, las=True, report=True)
+    # In memory first (the dense cloud's ground for the clearance), then written.
+    result = reconstruct(medium_span.images, medium_span.sparse, None, options, outputs)
+    assert not out.exists() or not any(out.iterdir())
+    write_outputs(result, out, outputs)
+    return result, out
+
+
+def test_the_options_are_not_changed(run):
+    result, _ = run
+    assert result.options == ReconstructionOptions(show_progress=False, min_clearance_m=21.0)
 
 
 def test_end_to_end_accuracy_and_completeness(run, medium_span):
@@ -146,7 +154,7 @@ def test_cli_reconstruct_runs(small_span, tmp_path, capsys):
             str(small_span.sparse),
             "--output_path",
             str(tmp_path),
-            "--wire_azimuth_deg",
+            "--pairs.wire_azimuth_deg",
             "35",
             "--verify.min_posterior",
             "0.95",
