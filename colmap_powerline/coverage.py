@@ -40,7 +40,7 @@ import numpy.typing as npt
 from scipy.stats import binned_statistic
 
 from .scene import Scene, SceneImage
-from .support import _strips
+from .support import positions_across
 from .trace import MIN_VIEWS, _beside_others
 from .verify import _roughly_in_view
 from .wires import FittedWire
@@ -281,7 +281,7 @@ def _diagnose(
     centres = np.array([v.center_in_world for v in clear]).reshape(-1, 3)
     lateral = (centres[:, :2] - wire.plane_origin_xy) @ normal
     height = float(np.median(scene.centers_in_world[:, 2]) - at[2])
-    positions = len(_strips(lateral, crossing_offset * height)) if len(clear) else 0
+    positions = positions_across(lateral, crossing_offset * height)
     if len(clear) < MIN_VIEWS:
         why = FEW_VIEWS
     elif positions < 2:

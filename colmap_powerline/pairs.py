@@ -157,25 +157,40 @@ class ImagePair:
 
 
 def _oriented_response(
-    gray: npt.NDArray[np.float32], angle_deg: float, length_px: int
+    gray: npt.NDArray[np.float32], angle_deg: float, length_px: int, along_step: int = 1
 ) -> tuple[npt.NDArray[np.float32], npt.NDArray[np.float64]]:
     """|line template| response with lines of direction ``angle_deg`` turned vertical.
 
     Only the central disc (which stays inside the image at every rotation) is kept, so all
     directions are judged on the same pixels. Returns the (H, W) response in the rotated
     frame (0 outside the disc) and the 2x3 affine transform from the image to that frame.
+
+    ``along_step``: the rotated image is sampled every this many pixels along the lines
+    (H / along_step rows). A line turned vertical crosses every row, so it keeps its full
+    contrast across, which shrinking the image across would average away (a 0.5 px wire at
+    a fifth of the width); the template still spans ``length_px`` along it.
     """
     h, w = gray.shape
     rot = cv2.getRotationMatrix2D((w / 2, h / 2), angle_deg - 90.0, 1.0)
-    img = cv2.warpAffine(gray, rot, (w, h), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    out_h = h
+    if along_step > 1:
+        out_h = -(-h // along_step)
+        rot[1] = (rot[1] - [0.0, 0.0, (along_step - 1) / 2]) / along_step
+    img = cv2.warpAffine(
+        gray, rot, (w, out_h), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE
+    )
     across = 2 * img - np.roll(img, 1, axis=1) - np.roll(img, -1, axis=1)
-    resp = np.abs(cv2.blur(across, (1, length_px)))
-    resp[~_disc(gray.shape, length_px)] = 0
+    resp = np.abs(cv2.blur(across, (1, max(1, round(length_px / along_step)))))
+    resp[~_disc(gray.shape, length_px, along_step)] = 0
     return resp, rot
 
 
 def _line_energy(
-    gray: npt.NDArray[np.float32], angle_deg: float, length_px: int, fair: bool = False
+    gray: npt.NDArray[np.float32],
+    angle_deg: float,
+    length_px: int,
+    fair: bool = False,
+    along_step: int = 1,
 ) -> float:
     """How strongly long thin lines of one image direction stand out: the top 0.2 % of the
     response (``fair``: of the central disc's, over its median there).
@@ -187,12 +202,12 @@ def _line_energy(
     area survey's line at 70° to its strips, which a few of its images see, ranks above the
     image axes (shared grid seed 3), but a flight across loses its wires (shared cross
     seed 1)."""
-    resp, _ = _oriented_response(gray, angle_deg, length_px)
+    resp, _ = _oriented_response(gray, angle_deg, length_px, along_step)
     if not fair:
         flat = resp.ravel()  # (the disc's outside is 0)
         k = max(flat.size // 500, 10)
         return float(np.partition(flat, flat.size - k)[-k:].mean())
-    inside = resp[_disc(gray.shape, length_px)]
+    inside = resp[_disc(gray.shape, length_px, along_step)]
     k = max(inside.size // 500, 10)
     top = float(np.partition(inside, inside.size - k)[-k:].mean())
     sample = inside[::7]
@@ -201,26 +216,35 @@ def _line_energy(
 
 
 @functools.lru_cache(maxsize=4)
-def _disc(shape: tuple[int, ...], length_px: int) -> npt.NDArray[np.bool_]:
-    """The central disc that stays inside the image at every rotation."""
+def _disc(shape: tuple[int, ...], length_px: int, along_step: int = 1) -> npt.NDArray[np.bool_]:
+    """The central disc that stays inside the image at every rotation (in the rotated frame
+    sampled every ``along_step`` rows)."""
     h, w = shape[:2]
-    yy, xx = np.ogrid[:h, :w]
+    if along_step > 1:
+        yy = np.arange(-(-h // along_step))[:, None] * along_step + (along_step - 1) / 2
+        xx = np.arange(w)[None, :]
+    else:
+        yy, xx = np.ogrid[:h, :w]
     radius = min(h, w) / 2 - length_px
     return np.asarray((xx - w / 2) ** 2 + (yy - h / 2) ** 2 <= radius**2)
 
 
 def _image_directions(
-    gray: npt.NDArray[np.float32], options: PairsOptions, num_peaks: int = 3, fair: bool = False
+    gray: npt.NDArray[np.float32],
+    options: PairsOptions,
+    num_peaks: int = 3,
+    fair: bool = False,
+    along_step: int = 1,
 ) -> list[tuple[float, float]]:
     """The strongest thin-line directions of an image (degrees, 0 = +x, 90 = down), each with
     its contrast against the median direction, strongest first (``fair``: see
-    :func:`_line_energy`)."""
+    :func:`_line_energy`; ``along_step``: :func:`_oriented_response`)."""
     length = max(int(options.template_length_frac * gray.shape[1]), 9)
     # Rotating by anything but a right angle interpolates, which smooths: smooth every
     # direction alike first, or the image axes stand out on plain texture.
     gray = cv2.GaussianBlur(gray, (0, 0), 0.7)
     angles = np.arange(0.0, 180.0, options.scan_step_deg)
-    energy = np.array([_line_energy(gray, a, length, fair) for a in angles])
+    energy = np.array([_line_energy(gray, a, length, fair, along_step) for a in angles])
     median = max(float(np.median(energy)), 1e-9)
     peaks = [
         k
@@ -231,7 +255,7 @@ def _image_directions(
     out = []
     for k in peaks:
         fine = angles[k] + np.arange(-options.scan_step_deg, options.scan_step_deg + 1e-9, 0.5)
-        fine_energy = np.array([_line_energy(gray, a, length, fair) for a in fine])
+        fine_energy = np.array([_line_energy(gray, a, length, fair, along_step) for a in fine])
         out.append((float(fine[int(np.argmax(fine_energy))] % 180.0), float(energy[k] / median)))
     return out
 
@@ -367,10 +391,16 @@ def direction_candidates(
     views = _pick_spread(scene, n_views)
     analysed = []
     azimuths, weights = [], []
-    known = {v.name: (g, f) for v, g, f in read}
+    known = {v.name: (g, f) for v, g, f in read if not wide or f == 1}
     for view in views:
         if view.name in known:
             gray, factor = known[view.name]
+        elif wide:
+            # At full resolution: a thin conductor is half a pixel wide or less there (a
+            # distribution line's 10-25 mm at 4-7 cm per pixel), and any shrinking across
+            # averages it into the texture (shared twolines seed 7: the pole line's
+            # direction is among an image's five strongest at 2000 px, not at 800).
+            gray, factor = read_image(view.path, cv2.IMREAD_GRAYSCALE).astype(np.float32), 1
         else:
             raw = read_image(view.path, cv2.IMREAD_GRAYSCALE)
             factor = max(1, int(round(raw.shape[1] / options.analysis_width_px)))
@@ -380,7 +410,10 @@ def direction_candidates(
         analysed.append((view, gray, factor))
         if options.wire_azimuth_deg is None:
             peaks = WIDE_PEAKS if wide else 3
-            for angle, contrast in _image_directions(gray, options, peaks, fair=wide):
+            # Sampled along the lines at 1/16 of the template (the wide look reads full
+            # resolution: 16 samples along are as good as all of them, at a fraction).
+            step = max(1, int(options.template_length_frac * gray.shape[1]) // 16) if wide else 1
+            for angle, contrast in _image_directions(gray, options, peaks, wide, step):
                 azimuths.append(_world_azimuth(view, angle, height))
                 weights.append(contrast)
     if options.wire_azimuth_deg is not None:

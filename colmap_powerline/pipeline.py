@@ -347,7 +347,7 @@ def probe_corridors(scene: Scene, options: ReconstructionOptions) -> list[WireCo
         # is the run's last chance to find it: up to twice as many.
         lost = first is None or first.num_wires < MIN_LINE_WIRES
         wide = direction_candidates(scene, options.pairs, wide=True, read=cands.analysed)
-        decoded += [p for p in wide.decoded if p not in decoded]
+        decoded += list(wide.decoded)  # at full resolution: the first look's images again
         tol = options.pairs.candidate_tolerance_deg
         probed = [cands.azimuths_deg[k] for k in order]
         if not lost and first is not None:

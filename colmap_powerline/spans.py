@@ -44,7 +44,7 @@ from scipy.sparse.csgraph import connected_components
 from .options import check_limits
 from .pairs import WireCorridor, axial_diff_deg
 from .scene import read_image
-from .support import _strips
+from .support import positions_across
 from .wires import FittedWire, WiresOptions, refit
 
 logger = logging.getLogger(__name__)
@@ -542,7 +542,7 @@ def _measurable(views: Sequence, at: F64, leg: _Leg, crossing_offset: float) -> 
         return False
     centres = np.array([v.center_in_world for v in seeing])
     height = float(np.median(centres[:, 2]) - at[2])
-    return len(_strips(leg.c(centres[:, :2]), crossing_offset * height)) >= 2
+    return positions_across(leg.c(centres[:, :2]), crossing_offset * height) >= 2
 
 
 def _cluster(values: F64, radius: float) -> list[I64]:

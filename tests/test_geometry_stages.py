@@ -556,3 +556,31 @@ def test_a_pair_that_cannot_be_rectified_is_skipped_not_fatal(small_scene, corri
     assert [p.pair_index for p in prims] == [0, 1]
     assert len(prims[0]) == 0 and len(prims[1]) > 0
     assert any("pair 0 skipped" in r.getMessage() for r in caplog.records)
+
+
+def test_a_half_pixel_line_keeps_its_direction_sampled_along_it_not_shrunk_across():
+    """The wider look reads full resolution, sampled along each direction (along_step): a
+    line half a pixel wide keeps its contrast there; shrunk to 40 % of the width (the first
+    look's analysis width) it is averaged into the texture."""
+    from colmap_powerline.pairs import _image_directions
+
+    rng = np.random.default_rng(5)
+    h, w = 1200, 1600
+    noise = rng.normal(0.0, 1.0, (h, w)).astype(np.float32)
+    image = 128 + 10 * cv2.GaussianBlur(noise, (0, 0), 1.5) / 0.19
+    angle = np.deg2rad(131.0)
+    # A wire 0.5 px wide, 20 grey levels darker: area-weighted into the pixels it crosses.
+    t = np.linspace(-1100, 1100, 44000)
+    x, y = w / 2 + t * np.cos(angle), h / 2 + t * np.sin(angle)
+    ok = (x >= 0) & (x < w - 1) & (y >= 0) & (y < h - 1)
+    np.add.at(image, (y[ok].astype(int), x[ok].astype(int)), -20.0 * 0.5 / 20)
+    step = int(PairsOptions().template_length_frac * w) // 16
+    sampled = _image_directions(image, PairsOptions(), 5, True, step)
+    best = max(sampled, key=lambda p: p[1])
+    assert abs(best[0] - 131.0) < 1.5 and best[1] > 1.2, sampled
+    # Sampled along, the contrast is what every row gives.
+    full = _image_directions(image, PairsOptions(), 5, True, 1)
+    assert max(c for _, c in full) == pytest.approx(best[1], rel=0.1)
+    small = cv2.resize(image, (640, 480), interpolation=cv2.INTER_AREA)
+    shrunk = _image_directions(small, PairsOptions(), 5, True)
+    assert all(abs(a - 131.0) > 1.5 or c < 1.1 for a, c in shrunk), shrunk

@@ -361,3 +361,16 @@ def test_views_that_can_tell_do_not_outvote_a_strip_that_misses_the_wire(two_str
     for k in BOTH:
         if k != 1:
             assert SupportOptions().accepts(by_id[k].confidence), by_id[k]
+
+
+def test_positions_across_count_spread_views_not_only_gaps():
+    """Two positions across a wire are views at least ``need`` apart across it: strips with a
+    gap between them, or views spread evenly over an area survey with no gap (an area
+    survey at an angle to a line: one "strip", yet views 70 m apart across it)."""
+    from colmap_powerline.support import positions_across
+
+    assert positions_across(np.array([]), 9.0) == 0
+    assert positions_across(np.array([0.0, 1.0, 2.0]), 9.0) == 1  # one strip, narrow
+    assert positions_across(np.array([0.0, 1.0, 30.0, 31.0]), 9.0) == 2  # two strips
+    spread = np.arange(-27.6, 42.0, 6.0)  # 66 m across, 6 m apart: no gap over 9 m
+    assert positions_across(spread, 9.0) == 6  # -27.6, -15.6, -3.6, 8.4, 20.4, 32.4
