@@ -40,7 +40,8 @@ import numpy.typing as npt
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
-from .pairs import WireCorridor, axial_diff_deg
+from .geometry import across_of, axial_diff_deg
+from .pairs import WireCorridor
 from .scene import read_image
 from .support import _strips
 from .wires import FittedWire, WiresOptions, refit
@@ -211,7 +212,7 @@ class _Leg:
         d = self.direction + sum((e if e @ self.direction > 0 else -e) for e in
                                  (o.direction for o in others))  # fmt: skip
         d = d / np.linalg.norm(d)
-        return d, np.array([d[1], -d[0]])
+        return d, across_of(d)
 
     def ends_u(self, wire: FittedWire) -> tuple[float, float]:
         u = self.u(wire.points(np.array(wire.s_range))[:, :2])
