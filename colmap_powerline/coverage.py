@@ -39,6 +39,7 @@ import numpy as np
 import numpy.typing as npt
 from scipy.stats import binned_statistic
 
+from .geometry import offsets_across
 from .scene import Scene, SceneImage
 from .support import positions_across
 from .trace import MIN_VIEWS, _beside_others
@@ -276,10 +277,8 @@ def _diagnose(
     if not seeing:
         return 0, 0, 0, UNSEEN
     clear = [v for v in seeing if _clear_of_others(v, wire, at, others, reach_px, side_offset_px)]
-    d = wire.plane_direction_xy
-    normal = np.array([d[1], -d[0]])
     centres = np.array([v.center_in_world for v in clear]).reshape(-1, 3)
-    lateral = (centres[:, :2] - wire.plane_origin_xy) @ normal
+    lateral = offsets_across(centres[:, :2], wire.plane_origin_xy, wire.plane_direction_xy)
     height = float(np.median(scene.centers_in_world[:, 2]) - at[2])
     positions = positions_across(lateral, crossing_offset * height)
     if len(clear) < MIN_VIEWS:

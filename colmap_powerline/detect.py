@@ -17,6 +17,7 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 
+from .geometry import image_axes
 from .options import check_limits
 
 logger = logging.getLogger(__name__)
@@ -94,8 +95,7 @@ def _to_gray(image: np.ndarray) -> F32:
 
 def line_kernel(direction_deg: float, length_px: int, side_offset_px: int) -> F32:
     """The −1 2 −1 × length template as a (k, k) kernel along ``direction_deg``."""
-    d = np.array([np.cos(np.deg2rad(direction_deg)), np.sin(np.deg2rad(direction_deg))])
-    n = np.array([-d[1], d[0]])
+    d, n = image_axes(direction_deg)
     half = int(np.ceil(length_px / 2 + side_offset_px)) + 1
     k = np.zeros((2 * half + 1, 2 * half + 1), np.float32)
     ts = np.linspace(-(length_px - 1) / 2, (length_px - 1) / 2, 2 * length_px)
@@ -177,8 +177,7 @@ def detect_wires(
     smooth = cv2.GaussianBlur(response, (0, 0), 0.7)
     smooth_mag = np.abs(smooth)
     smooth_pos = smooth > 0
-    a = np.deg2rad(direction_deg)
-    sx0, sy0 = -options.side_offset_px * np.sin(a), options.side_offset_px * np.cos(a)
+    sx0, sy0 = options.side_offset_px * image_axes(direction_deg)[1]
     for sx, sy in ((sx0, sy0), (-sx0, -sy0)):
         # nb[y, x] = smooth[y + sy, x + sx], sub-pixel.
         shift = np.array([[1.0, 0.0, -sx], [0.0, 1.0, -sy]])
@@ -189,7 +188,7 @@ def detect_wires(
     # 4-connected components, kept when long enough along the wire direction.
     n, labels, stats, _ = cv2.connectedComponentsWithStats(candidate.astype(np.uint8), None, 4)
     # Extent along the wire direction from the bounding box (exact for thin straight lines).
-    d = np.abs([np.cos(np.deg2rad(direction_deg)), np.sin(np.deg2rad(direction_deg))])
+    d = np.abs(image_axes(direction_deg)[0])
     extent = stats[:, cv2.CC_STAT_WIDTH] * d[0] + stats[:, cv2.CC_STAT_HEIGHT] * d[1]
     long_enough = extent >= options.min_length_px(w)
     long_enough[0] = False

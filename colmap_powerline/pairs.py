@@ -22,9 +22,18 @@ import numpy as np
 import numpy.typing as npt
 
 from .errors import InputError
+from .geometry import (
+    across_of,
+    axial_diff_deg,
+    axial_mean_deg,
+    azimuth_deg_of,
+    crossing_views,
+    image_axes,
+    image_direction_of_azimuth,
+    plan_axes,
+)
 from .options import OptionError, check_limits
 from .scene import Scene, SceneImage, read_image
-from .verify import crossing_views
 
 logger = logging.getLogger(__name__)
 
@@ -115,13 +124,11 @@ class WireCorridor:
 
     @property
     def direction_xy(self) -> F64:
-        az = np.deg2rad(self.azimuth_deg)
-        return np.array([np.sin(az), np.cos(az)])
+        return plan_axes(self.azimuth_deg)[0]
 
     @property
     def normal_xy(self) -> F64:
-        d = self.direction_xy
-        return np.array([d[1], -d[0]])
+        return across_of(self.direction_xy)
 
     def sample_points(self, step: float = 1.0, margin: float = 5.0) -> F64:
         """(2, N, 3) points on five lines along the wire band (its width plus ``margin``), at
@@ -278,21 +285,16 @@ def _line_pixels(
 def _world_azimuth(view: SceneImage, angle: float, height: float) -> float:
     """Image direction at the image centre → azimuth of a horizontal line at ``height``."""
     c_px = np.array([view.width / 2, view.height / 2])
-    step = 0.05 * view.width * np.array([np.cos(np.deg2rad(angle)), np.sin(np.deg2rad(angle))])
+    step = 0.05 * view.width * image_axes(angle)[0]
     xy = _to_plane(view, np.stack([c_px - step, c_px + step]), height)
-    d = xy[1] - xy[0]
-    return float(np.rad2deg(np.arctan2(d[0], d[1])) % 180.0)
+    return azimuth_deg_of(xy[1] - xy[0])
 
 
 def _image_angle(view: SceneImage, azimuth: float, height: float) -> float:
     """Azimuth of a horizontal line at ``height`` → its image direction near the image centre."""
     c_px = np.array([[view.width / 2, view.height / 2]])
     centre = np.r_[_to_plane(view, c_px, height)[0], height]
-    az = np.deg2rad(azimuth)
-    d = np.array([np.sin(az), np.cos(az), 0.0])
-    uv, _, _ = view.project(np.stack([centre - d, centre + d]))
-    du = uv[1] - uv[0]
-    return float(np.rad2deg(np.arctan2(du[1], du[0])) % 180.0)
+    return image_direction_of_azimuth(lambda p: view.project(p)[0], centre, azimuth)
 
 
 def _to_plane(view: SceneImage, uv: F64, z: float) -> F64:
@@ -313,19 +315,6 @@ def _pick_spread(scene: Scene, n: int) -> list[SceneImage]:
         chosen.append(k)
         dist = np.minimum(dist, np.linalg.norm(centres - centres[k], axis=1))
     return [scene.images[k] for k in chosen]
-
-
-def axial_diff_deg(a: npt.ArrayLike, b: npt.ArrayLike) -> F64:
-    """Angles between axial directions in degrees (0-90): 10° and 190° are one direction."""
-    return np.abs((np.asarray(a, np.float64) - np.asarray(b, np.float64) + 90.0) % 180.0 - 90.0)
-
-
-def axial_mean_deg(angles_deg: F64, weights: F64) -> float:
-    """Weighted mean of directions defined modulo 180° (degrees, in [0, 180))."""
-    doubled = np.deg2rad(2 * np.asarray(angles_deg, np.float64))
-    w = np.asarray(weights, np.float64)
-    mean = np.arctan2((w * np.sin(doubled)).sum(), (w * np.cos(doubled)).sum())
-    return float(np.rad2deg(mean) / 2 % 180.0)
 
 
 def _consensus_azimuth(
@@ -473,8 +462,7 @@ def _band_corridor(
     decoded: tuple[Path, ...],
 ) -> WireCorridor:
     """The corridor of a band ``c_range`` across the direction, as long as two images see it."""
-    az = np.deg2rad(azimuth)
-    direction, normal = np.array([np.sin(az), np.cos(az)]), np.array([np.cos(az), -np.sin(az)])
+    direction, normal = plan_axes(azimuth)
     c_lo, c_hi = c_range
     c_mid = 0.5 * (c_lo + c_hi)
     s_lo, s_hi = _along_extent(scene, c_mid * normal, direction, z, s_guess)
@@ -522,8 +510,7 @@ def provisional_corridors(
             for v, g, f in candidates.analysed
         ]
     )
-    az = np.deg2rad(azimuth)
-    direction, normal = np.array([np.sin(az), np.cos(az)]), np.array([np.cos(az), -np.sin(az)])
+    direction, normal = plan_axes(azimuth)
     c, s = xy @ normal, xy @ direction
     bins = np.arange(c.min() - 1, c.max() + 2, 1.0)
     hist, _ = np.histogram(c, bins)
@@ -565,8 +552,7 @@ def corridor_from_points(
         azimuth: the wires' direction measured from them (degrees clockwise from +y).
         provisional: the corridor the probe was chosen for.
     """
-    az = np.deg2rad(azimuth)
-    direction, normal = np.array([np.sin(az), np.cos(az)]), np.array([np.cos(az), -np.sin(az)])
+    direction, normal = plan_axes(azimuth)
     c, s = pts_in_world[:, :2] @ normal, pts_in_world[:, :2] @ direction
     z = pts_in_world[:, 2]
     z_lo, z_hi = np.quantile(z, [0.02, 0.98])
@@ -612,7 +598,7 @@ def select_pairs(
 
     A part of the corridor counts as covered by a pair when both images see it and so does
     a third view offset across the wires from both (``crossing_offset`` × height, see
-    :func:`colmap_powerline.verify.crossing_views`): only such a view can reject the pair's
+    :func:`colmap_powerline.geometry.crossing_views`): only such a view can reject the pair's
     false matches there.
     """
     options = options or PairsOptions()

@@ -27,6 +27,13 @@ from .detect import DetectOptions, WireMask, detect_wires
 from .errors import InputError, PairGeometryError
 from .export import export_results
 from .files import wire_colors
+from .geometry import (
+    across_of,
+    axial_diff_deg,
+    axial_mean_deg,
+    azimuth_deg_of,
+    image_direction_of_azimuth,
+)
 from .georef import Georeference, crs_converter, crs_wkt, read_georeference
 from .las import CONDUCTOR, WIRE_CLASS, write_las
 from .options import validate
@@ -35,8 +42,6 @@ from .pairs import (
     DirectionCandidates,
     ImagePair,
     WireCorridor,
-    axial_diff_deg,
-    axial_mean_deg,
     corridor_from_points,
     direction_candidates,
     provisional_corridors,
@@ -164,11 +169,6 @@ def _merged(parts: Sequence[CorridorResult], inlier_distance: float) -> Corridor
     )
 
 
-def _direction_deg(uv: npt.NDArray[np.float64]) -> float:
-    d = uv[1] - uv[0]
-    return float(np.rad2deg(np.arctan2(d[1], d[0])) % 180.0)
-
-
 def _detect_rectified(
     pair: RectifiedPair,
     side: int,
@@ -179,9 +179,10 @@ def _detect_rectified(
     """Wire centres of one side of a rectified pair."""
     rect, valid = pair.rectify_image(side, image)
     centre = np.r_[corridor.centre_xy, corridor.height]
-    d = np.r_[corridor.direction_xy, 0.0]
-    uv, _ = pair.project(side, np.stack([centre - d, centre + d]))
-    wm = detect_wires(rect, _direction_deg(uv), options)
+    direction = image_direction_of_azimuth(
+        lambda p: pair.project(side, p)[0], centre, corridor.azimuth_deg
+    )
+    wm = detect_wires(rect, direction, options)
     # The template sees the edge of the resampled footprint as a line: drop it.
     border = options.template_length_px + 4
     valid = cv2.erode(valid.astype(np.uint8), np.ones((border, border), np.uint8)).astype(bool)
@@ -283,7 +284,7 @@ def _probe(
     # The direction of the wires' own planes, weighted by their length (the points' spread
     # is not: parallel wires widen it across the line).
     measured = axial_mean_deg(
-        np.array([np.rad2deg(np.arctan2(*w.plane_direction_xy)) for w in wires]),
+        np.array([azimuth_deg_of(w.plane_direction_xy, axial=False) for w in wires]),
         np.array([w.s_range[1] - w.s_range[0] for w in wires]),
     )
     return _Probe(length, len(wires), prov, verified.pts_in_world[idx], measured), decoded
@@ -1119,11 +1120,10 @@ def _line_offsets(wires: list[FittedWire]) -> list[tuple[float, float]]:
 
 def _shifted(wire: FittedWire, across: float, dz: float, wire_id: int) -> FittedWire:
     """The wire moved across its plane by ``across`` and up by ``dz``, without points."""
-    d = wire.plane_direction_xy
     return dataclasses.replace(
         wire,
         wire_id=wire_id,
-        plane_origin_xy=wire.plane_origin_xy + across * np.array([d[1], -d[0]]),
+        plane_origin_xy=wire.plane_origin_xy + across * across_of(wire.plane_direction_xy),
         z0=wire.z0 + dz,
         point_indices=np.zeros(0, np.int64),
     )

@@ -24,6 +24,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from .files import wire_colors, write_atomic  # noqa: E402
+from .geometry import plan_axes  # noqa: E402
 
 if TYPE_CHECKING:
     from .results import ReconstructionOptions, ReconstructionResult
@@ -252,8 +253,7 @@ def _cameras(result: ReconstructionResult, units: str, path: Path) -> Path:
         a, b = p.left.center_in_world, p.right.center_in_world
         ax.plot([a[0], b[0]], [a[1], b[1]], "-", lw=2, label=f"pair {k}")
     cor = result.corridor
-    az = np.deg2rad(cor.azimuth_deg)
-    d, n = np.array([np.sin(az), np.cos(az)]), np.array([np.cos(az), -np.sin(az)])
+    d, n = plan_axes(cor.azimuth_deg)
     s0, s1 = cor.s_range
     box = [
         cor.centre_xy + s * d + c * n

@@ -41,8 +41,9 @@ import numpy.typing as npt
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
+from .geometry import across_of, axial_diff_deg
 from .options import check_limits
-from .pairs import WireCorridor, axial_diff_deg
+from .pairs import WireCorridor
 from .scene import read_image
 from .support import positions_across
 from .wires import FittedWire, WiresOptions, refit
@@ -212,7 +213,7 @@ class _Leg:
         d = self.direction + sum((e if e @ self.direction > 0 else -e) for e in
                                  (o.direction for o in others))  # fmt: skip
         d = d / np.linalg.norm(d)
-        return d, np.array([d[1], -d[0]])
+        return d, across_of(d)
 
     def ends_u(self, wire: FittedWire) -> tuple[float, float]:
         u = self.u(wire.points(np.array(wire.s_range))[:, :2])

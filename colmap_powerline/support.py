@@ -27,9 +27,10 @@ import numpy as np
 import numpy.typing as npt
 from scipy.spatial import cKDTree
 
+from .geometry import azimuth_deg_of, crossing_views, offsets_across
 from .options import check_limits
 from .scene import Scene
-from .verify import CONTROL_OFFSETS_PX, ViewWirePixels, crossing_views
+from .verify import CONTROL_OFFSETS_PX, ViewWirePixels
 from .wires import FittedWire
 
 logger = logging.getLogger(__name__)
@@ -296,8 +297,7 @@ def _pair_kinds_disagree(
     sees = both & (cos <= np.cos(np.deg2rad(KIND_MIN_CROSSING_DEG)))
     if not sees.any():
         return False
-    normal = np.array([wire.plane_direction_xy[1], -wire.plane_direction_xy[0]])
-    lateral = (centres[:, :2] - wire.plane_origin_xy) @ normal
+    lateral = offsets_across(centres[:, :2], wire.plane_origin_xy, wire.plane_direction_xy)
     groups = _strips(lateral[np.unique(pair_views)], gap)
     strips = np.sort(_strip_of(groups, lateral[pair_views]), axis=1)
     kinds = strips[:, 0] * len(groups) + strips[:, 1]
@@ -399,7 +399,7 @@ def wire_support(
         produced = np.flatnonzero(counts > 0)
         mid = wire.points(np.array([0.5 * sum(wire.s_range)]))[0]
         height = float(np.median(centres[:, 2]) - mid[2])
-        azimuth = float(np.rad2deg(np.arctan2(*wire.plane_direction_xy)) % 180.0)
+        azimuth = azimuth_deg_of(wire.plane_direction_xy)
         view_idx = np.array([m.view_index for m in ms], np.int64)
         cross = np.zeros(len(ms), bool)
         if len(produced) and len(ms):
@@ -416,8 +416,9 @@ def wire_support(
             told = counts[produced] @ can.any(axis=1) / total
             if told >= options.min_pair_share:
                 cross = share >= options.min_pair_share * share.max()
-        normal = np.array([wire.plane_direction_xy[1], -wire.plane_direction_xy[0]])
-        lateral = (centres[view_idx, :2] - wire.plane_origin_xy) @ normal
+        lateral = offsets_across(
+            centres[view_idx, :2], wire.plane_origin_xy, wire.plane_direction_xy
+        )
         groups = _strips(lateral, crossing_offset * height) if len(lateral) else []
         # Each view's strip: the group its offset across the wire falls in.
         strip_of = _strip_of(groups, lateral)

@@ -36,6 +36,7 @@ from scipy import ndimage
 from tqdm import tqdm
 
 from .errors import InputError
+from .geometry import across_of, plan_axes
 from .render import draw_thin_polyline, fbm, periodic_noise, remap
 from .scene import SceneImage, cam_from_img
 
@@ -322,10 +323,7 @@ class SyntheticSpan:
 
 def _line_frame(opts: SyntheticSpanOptions) -> tuple[F64, F64]:
     """Unit vectors along the line (A → B) and across it (to its right), in plan."""
-    az = np.deg2rad(opts.line_azimuth_deg)
-    along = np.array([np.sin(az), np.cos(az)])
-    across = np.array([np.cos(az), -np.sin(az)])
-    return along, across
+    return plan_axes(opts.line_azimuth_deg)
 
 
 def _make_terrain(opts: SyntheticSpanOptions, rng: np.random.Generator) -> Terrain:
@@ -411,11 +409,10 @@ def _leg_frames(opts: SyntheticSpanOptions) -> list[tuple[F64, F64, F64]]:
     along, across = _line_frame(opts)
     if opts.layout is not Layout.ANGLE:
         return [(np.zeros(2), along, across)]
-    az = np.deg2rad(opts.line_azimuth_deg + opts.turn_deg)
-    along2 = np.array([np.sin(az), np.cos(az)])
+    along2, across2 = plan_axes(opts.line_azimuth_deg + opts.turn_deg)
     return [
         (-opts.span_m / 2 * along, along, across),
-        (opts.span_m / 2 * along2, along2, np.array([along2[1], -along2[0]])),
+        (opts.span_m / 2 * along2, along2, across2),
     ]
 
 
@@ -430,7 +427,7 @@ def _make_towers_and_wires(
         bisector = (along + along2) / np.linalg.norm(along + along2)
         sites = [
             (-opts.span_m * along, along, across, 1.0),
-            (np.zeros(2), bisector, np.array([bisector[1], -bisector[0]]), 1.0 / np.cos(half)),
+            (np.zeros(2), bisector, across_of(bisector), 1.0 / np.cos(half)),
             (opts.span_m * along2, along2, across2, 1.0),
         ]
     else:
@@ -472,9 +469,7 @@ def _make_towers_and_wires(
             )
     if opts.layout is Layout.CROSSING:
         # A 70 m pole span crossing the first 15 m from its middle, 4-5 m below it.
-        az = np.deg2rad(opts.line_azimuth_deg + opts.crossing_deg)
-        along_c = np.array([np.sin(az), np.cos(az)])
-        across_c = np.array([along_c[1], -along_c[0]])
+        along_c, across_c = plan_axes(opts.line_azimuth_deg + opts.crossing_deg)
         crossing = 0.15 * opts.span_m * along
         poles = []
         for sign in (-1.0, 1.0):

@@ -69,6 +69,7 @@ from scipy.spatial import cKDTree
 from scipy.stats import chi2
 
 from .detect import DetectOptions, contrast_threshold
+from .geometry import across_of, plan_axes
 from .options import check_limits
 from .scene import Scene, SceneImage, read_image
 from .verify import (
@@ -184,7 +185,7 @@ def _frames(wire: FittedWire, s: F64) -> tuple[F64, F64, F64]:
     slope = np.sinh((s - wire.s0) / wire.catenary_a)
     tangent = np.c_[np.outer(np.ones(len(s)), d), slope]
     tangent /= np.linalg.norm(tangent, axis=1, keepdims=True)
-    horizontal = np.tile(np.r_[d[1], -d[0], 0.0], (len(s), 1))
+    horizontal = np.tile(np.r_[across_of(d), 0.0], (len(s), 1))
     up = np.cross(horizontal, tangent)
     up *= np.sign(up[:, 2:3])
     return pts, tangent, np.stack([horizontal, up], axis=1)
@@ -1050,8 +1051,7 @@ def trace_wires(
     # (wire, end: 0 low, 1 high) → the points of a round on probation at that end.
     probation: dict[tuple[int, int], I64] = {}
     bias: dict[tuple[int, int], float] = {}
-    az = np.deg2rad(azimuth_deg)
-    along = np.array([np.sin(az), np.cos(az)])
+    along, _ = plan_axes(azimuth_deg)
     # How far along the line the measured wires reach.
     ends_along = np.concatenate(
         [w.points(np.array(w.s_range))[:, :2] @ along for w in wires + context]

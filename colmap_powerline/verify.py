@@ -24,6 +24,7 @@ import numpy.typing as npt
 from tqdm import tqdm
 
 from .detect import WireMask
+from .geometry import crossing_views, image_axes, image_direction_of_azimuth
 from .options import check_limits
 from .scene import Scene, SceneImage, read_image
 from .triangulate import Primitives
@@ -250,39 +251,10 @@ class _ViewResult:
     t_detect: float
 
 
-def crossing_views(
-    view_centres: F64, pair_centres: F64, azimuth_deg: float, height: float, offset: float
-) -> npt.NDArray[np.bool_]:
-    """Which views can reject a pair's false matches.
-
-    A camera that moved along the wires from a pair camera sees the same plane through each
-    wire, so it confirms that camera's false matches. Only views offset across the wires from
-    both pair cameras by more than ``offset × height`` can reject them.
-
-    Args:
-        view_centres: (V, 3) camera centres of the views.
-        pair_centres: (P, 2, 3) the two camera centres of each pair.
-        azimuth_deg: the wires' direction.
-        height: camera height above the wires (model units).
-        offset: the lateral offset needed, as a share of ``height``.
-
-    Returns:
-        (P, V) True where view v is offset across the wires from both cameras of pair p.
-    """
-    az = np.deg2rad(azimuth_deg)
-    normal = np.array([np.cos(az), -np.sin(az)])
-    lateral = (view_centres[None, None, :, :2] - pair_centres[:, :, None, :2]) @ normal  # (P,2,V)
-    return np.abs(lateral).min(axis=1) > offset * height
-
-
 def image_wire_direction_deg(view: SceneImage, pt_in_world: F64, azimuth_deg: float) -> float:
     """Direction (degrees, 0 = +x, 90 = +y i.e. down) of a horizontal line of the given
     azimuth through ``pt_in_world`` in the image."""
-    az = np.deg2rad(azimuth_deg)
-    d = np.array([np.sin(az), np.cos(az), 0.0])
-    uv, _, _ = view.project(np.stack([pt_in_world - d, pt_in_world + d]))
-    du = uv[1] - uv[0]
-    return float(np.rad2deg(np.arctan2(du[1], du[0])) % 180.0)
+    return image_direction_of_azimuth(lambda p: view.project(p)[0], pt_in_world, azimuth_deg)
 
 
 def samples_across(image: np.ndarray, uv: F64, normal: F64, steps: F64) -> F64:
@@ -462,8 +434,7 @@ def verify_primitives(
         hit = near_wire[px[:, 1] - y0, px[:, 0] - x0]
         # The chance of a hit by accident: the same test on copies of the point displaced
         # across the wire direction, shrunk towards the crop's wire-pixel density.
-        a = np.deg2rad(direction)
-        normal = np.array([-np.sin(a), np.cos(a)])
+        normal = image_axes(direction)[1]
         shifted = (uv - [x0, y0])[:, None, :] + CONTROL_OFFSETS_PX[None, :, None] * normal
         sx = np.clip(np.floor(shifted[..., 0]).astype(np.int64), 0, near_wire.shape[1] - 1)
         sy = np.clip(np.floor(shifted[..., 1]).astype(np.int64), 0, near_wire.shape[0] - 1)

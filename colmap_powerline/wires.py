@@ -26,6 +26,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
+from .geometry import across_of, azimuth_deg_of, offsets_across, plan_axes
 from .options import check_limits
 
 logger = logging.getLogger(__name__)
@@ -162,7 +163,7 @@ class FittedWire:
         rel = np.asarray(pts, np.float64)[:, :2] - self.plane_origin_xy
         d = self.plane_direction_xy
         s = rel @ d
-        across = rel @ np.array([d[1], -d[0]])
+        across = rel @ across_of(d)
         return s, across, np.asarray(pts)[:, 2] - self.z_at(s)
 
     def distance(self, pts: F64) -> F64:
@@ -218,7 +219,7 @@ class FittedWire:
 def _fit(pts: F64, idx: I64, azimuth_xy: F64, options: WiresOptions) -> FittedWire | None:
     """Plane + catenary through the points ``pts[idx]``; None when it is not a wire."""
     p = pts[idx]
-    normal = np.array([azimuth_xy[1], -azimuth_xy[0]])
+    normal = across_of(azimuth_xy)
     s, c = p[:, :2] @ azimuth_xy, p[:, :2] @ normal
     if len(idx) < options.min_points or np.ptp(s) < options.min_length:
         return None
@@ -236,7 +237,7 @@ def _fit(pts: F64, idx: I64, azimuth_xy: F64, options: WiresOptions) -> FittedWi
         a, s0, z0, res_z = fit_catenary(s_plane, p[:, 2])
     except ValueError:
         return None
-    across = (p[:, :2] - origin) @ np.array([direction[1], -direction[0]])
+    across = offsets_across(p[:, :2], origin, direction)
     dist = np.hypot(across, res_z)
     inl = dist < options.inlier_distance
     if inl.sum() < options.min_points:
@@ -295,8 +296,7 @@ def absorb_points(
         np.full(len(wires), options.inlier_distance),
     )
     close = best >= 0
-    az = np.deg2rad(azimuth_deg)
-    along = np.array([np.sin(az), np.cos(az)])
+    along, _ = plan_axes(azimuth_deg)
     out = []
     for k, w in enumerate(wires):
         mine = new_idx[close & (best == k)]
@@ -327,8 +327,7 @@ def trim_wire(
     """The wire refitted on its points within ``s_range`` along its plane (None: too few)."""
     s = wire.plane_coords(pts_in_world[wire.point_indices])[0]
     idx = wire.point_indices[(s >= s_range[0]) & (s <= s_range[1])]
-    az = np.deg2rad(azimuth_deg)
-    fit = _fit(pts_in_world, idx, np.array([np.sin(az), np.cos(az)]), options)
+    fit = _fit(pts_in_world, idx, plan_axes(azimuth_deg)[0], options)
     if fit is None or fit.rms_residual > options.max_rms:
         return None
     return dataclasses.replace(fit, wire_id=wire.wire_id)
@@ -344,8 +343,7 @@ def merge_pieces(
         The wires (a joined wire keeps the id of its first piece) and, for every id that was
         joined into another, that wire's id.
     """
-    az = np.deg2rad(azimuth_deg)
-    along = np.array([np.sin(az), np.cos(az)])
+    along, _ = plan_axes(azimuth_deg)
     out = list(wires)
     joined: dict[int, int] = {}
     apart: set[tuple[int, int]] = set()  # pairs of ids already found to be two wires
@@ -397,7 +395,7 @@ def _layers(pts: F64, idx: I64, along: F64, options: WiresOptions) -> list[Fitte
     across a smooth trend of all of them), until no layer of ``min_points`` is left."""
     out: list[FittedWire] = []
     rest = idx
-    normal = np.array([along[1], -along[0]])
+    normal = across_of(along)
     while len(rest) >= options.min_points and len(out) < MAX_LAYERS:
         p = pts[rest]
         s, c = p[:, :2] @ along, p[:, :2] @ normal
@@ -480,8 +478,7 @@ def estimate_azimuth(pts: F64) -> float:
     """The dominant horizontal direction of the points (degrees clockwise from +y)."""
     xy = pts[:, :2] - np.median(pts[:, :2], axis=0)
     _, _, vt = np.linalg.svd(xy[:: max(len(xy) // 20000, 1)], full_matrices=False)
-    d = vt[0]
-    return float(np.degrees(np.arctan2(d[0], d[1])) % 180.0)
+    return azimuth_deg_of(vt[0])
 
 
 def split_wires(
@@ -515,9 +512,7 @@ def split_wires(
         return []
     if azimuth_deg is None:
         azimuth_deg = estimate_azimuth(pts)
-    az = np.deg2rad(azimuth_deg)
-    along = np.array([np.sin(az), np.cos(az)])
-    normal = np.array([along[1], -along[0]])
+    along, normal = plan_axes(azimuth_deg)
     s, c, z = pts[:, :2] @ along, pts[:, :2] @ normal, pts[:, 2]
 
     # Voxel chains: coarse along the line, fine across and in height.
