@@ -39,9 +39,8 @@ import numpy as np
 import numpy.typing as npt
 from scipy.stats import binned_statistic
 
-from .geometry import offsets_across
+from .geometry import offsets_across, positions_across
 from .scene import Scene, SceneImage
-from .support import positions_across
 from .trace import MIN_VIEWS, _beside_others
 from .verify import _roughly_in_view
 from .wires import FittedWire

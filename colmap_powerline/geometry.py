@@ -108,3 +108,16 @@ def crossing_views(
         view_centres[None, None, :, :2], pair_centres[:, :, None, :2], along
     )  # (P, 2, V)
     return np.abs(lateral).min(axis=1) > offset * height
+
+
+def positions_across(offsets: F64, need: float) -> int:
+    """How many positions across the wire, each at least ``need`` from the one before, the
+    views at ``offsets`` hold. Strips with gaps between them are positions, but so are the
+    ends of an area survey's views spread evenly across a wire at an angle to its strips
+    (shared twolines seed 7: 12 views over 70 m across the pole line, no gap over 9 m:
+    one strip, five positions 9 m apart)."""
+    count, last = 0, -np.inf
+    for x in np.sort(offsets):
+        if x - last >= need:
+            count, last = count + 1, x
+    return count

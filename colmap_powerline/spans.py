@@ -41,11 +41,10 @@ import numpy.typing as npt
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
-from .geometry import across_of, axial_diff_deg
+from .geometry import across_of, axial_diff_deg, positions_across
 from .options import check_limits
 from .pairs import WireCorridor
 from .scene import read_image
-from .support import positions_across
 from .wires import FittedWire, WiresOptions, refit
 
 logger = logging.getLogger(__name__)
@@ -555,6 +554,25 @@ def _cluster(values: F64, radius: float) -> list[I64]:
     return [g for g in np.split(order, breaks)]
 
 
+_Found = tuple[int, float, str, set[int]]  # (leg, u along it, found by, wire ids)
+_Located = tuple[list[int], F64, str, set[int]]  # (legs, plan position, found by, wire ids)
+
+
+@dataclass
+class _Work:
+    """The wires as :func:`find_spans` cuts them: each with the input wire it came from and
+    the leg (corridor) that measured it; ``cut_ids``: the wires made by a cut."""
+
+    wires: list[FittedWire]
+    source: list[int]
+    legs: list[int]
+    cut_ids: set[int]
+    next_id: int
+
+    def on_leg(self, li: int) -> list[int]:
+        return [k for k in range(len(self.wires)) if self.legs[k] == li]
+
+
 def find_spans(
     views: Sequence,
     ground_height: Callable[[F64], F64],
@@ -582,31 +600,72 @@ def find_spans(
     wires_options = wires_options or WiresOptions()
     axes = [_Leg(c) for c in corridors]
     max_across = 2.5 * wires_options.inlier_distance
-    next_id = max((w.wire_id for w in wires), default=-1) + 1
+    work = _Work([], [], [], set(), max((w.wire_id for w in wires), default=-1) + 1)
 
-    # 1. Kinks: a wire measured across a support is cut there (and its pieces looked at
-    # again: a wire may run across two).
-    out: list[FittedWire] = []
-    source: list[int] = []
-    out_legs: list[int] = []
+    # 1-2. Kinks in a wire and pieces meeting across a gap; one support per cluster of them
+    # along a leg.
+    cands = _kinks(work, wires, legs, axes, pts_in_world, options, wires_options)
+    cands += _meetings(work, axes, options, max_across)
+    found = _clustered(cands, len(axes), options)
+    # 3. Wires ending together where the images see past them: the line ends there.
+    found += _line_ends(views, work, axes, found, options, crossing_offset)
+    # 4. Every wire cut at each support of its leg that it runs across.
+    _cut_at_supports(work, found, axes, pts_in_world, options, wires_options, max_across)
+    # A piece cut off at a support may lie on the next span's wire of the same conductor
+    # (one curve took the points of both near the support, where they run close): it is
+    # that wire's, not a wire of its own.
+    work.wires, work.source, work.legs = _absorb_cut_pieces(
+        work.wires, work.source, work.legs, work.cut_ids, pts_in_world, axes, wires_options
+    )
+    # The cut pieces end at their supports now: where they meet places each support again
+    # (a wire carried past one had bent the curve that placed it).
+    found = [
+        (li, _met_again(work.wires, work.legs, axes[li], li, u, options, max_across), how, ids)
+        if how != "wires ending"
+        else (li, u, how, ids)
+        for li, u, how, ids in found
+    ]
+    # 5. Supports of two legs at one place: an angle support, and the legs one line.
+    located = _located(work, axes, found, options, max_across)
+    line_of_leg, line_ids = _lines(work, len(axes), located)
+    # 6. Chainage along each line, spans between its supports, attachments, conductors.
+    return _placed(work, axes, located, line_of_leg, line_ids, ground_height, options)
+
+
+def _kinks(
+    work: _Work,
+    wires: Sequence[FittedWire],
+    legs: Sequence[int],
+    axes: list[_Leg],
+    pts_in_world: F64,
+    options: SpanOptions,
+    wires_options: WiresOptions,
+) -> list[_Candidate]:
+    """A wire measured across a support is cut at its kink there (and its pieces looked at
+    again: a wire may run across two); the pieces go into ``work``."""
     cands: list[_Candidate] = []
-    cut_ids: set[int] = set()
     for k, w in enumerate(wires):
         leg = axes[legs[k]]
-        pieces, kinks, next_id = _cut_at_kinks(
-            w, pts_in_world, leg.direction, options, wires_options, next_id
+        pieces, kinks, work.next_id = _cut_at_kinks(
+            w, pts_in_world, leg.direction, options, wires_options, work.next_id
         )
-        out += pieces
-        source += [k] * len(pieces)
-        out_legs += [legs[k]] * len(pieces)
+        work.wires += pieces
+        work.source += [k] * len(pieces)
+        work.legs += [legs[k]] * len(pieces)
         if kinks:
-            cut_ids.update(p.wire_id for p in pieces)
+            work.cut_ids.update(p.wire_id for p in pieces)
         for xy in kinks:
             cands.append(_Candidate(legs[k], float(leg.u(xy)[0]), "kink", set()))
+    return cands
 
-    # 2. Pieces meeting across a gap at a support.
+
+def _meetings(
+    work: _Work, axes: list[_Leg], options: SpanOptions, max_across: float
+) -> list[_Candidate]:
+    """Pieces of one conductor meeting across a gap at a support."""
+    out, cands = work.wires, []
     for li, leg in enumerate(axes):
-        idx = [k for k in range(len(out)) if out_legs[k] == li]
+        idx = work.on_leg(li)
         for i in idx:
             for j in idx:
                 if i == j:
@@ -616,15 +675,18 @@ def find_spans(
                     cands.append(
                         _Candidate(li, t, "pieces meeting", {out[i].wire_id, out[j].wire_id})
                     )
+    return cands
 
-    # One support per cluster of kinks and meetings along a leg.
-    supports_u: list[tuple[int, float, str, set[int]]] = []
-    for li in range(len(axes)):
+
+def _clustered(cands: list[_Candidate], n_legs: int, options: SpanOptions) -> list[_Found]:
+    """One support per cluster of kinks and meetings along a leg."""
+    found: list[_Found] = []
+    for li in range(n_legs):
         mine = [c for c in cands if c.leg == li]
         for g in _cluster(np.array([c.u for c in mine]), options.support_radius):
             members = [mine[i] for i in g]
             kinds = {c.found_by for c in members}
-            supports_u.append(
+            found.append(
                 (
                     li,
                     float(np.median([c.u for c in members])),
@@ -632,10 +694,23 @@ def find_spans(
                     set().union(*(c.wire_ids for c in members)),
                 )
             )
+    return found
 
-    # 3. Wires ending together where the images see past them: the line ends there.
+
+def _line_ends(
+    views: Sequence,
+    work: _Work,
+    axes: list[_Leg],
+    found: list[_Found],
+    options: SpanOptions,
+    crossing_offset: float,
+) -> list[_Found]:
+    """Two or more wires ending together where the images see past them (and do not show
+    them going on), away from the corridor's end and from the supports found: the line
+    ends there."""
+    out, ends_found = work.wires, []
     for li, leg in enumerate(axes):
-        idx = [k for k in range(len(out)) if out_legs[k] == li]
+        idx = work.on_leg(li)
         if not idx:
             continue
         ends = np.array([leg.ends_u(out[k]) for k in idx])
@@ -649,7 +724,7 @@ def find_spans(
                 if further.any():
                     continue
                 if any(s_li == li and abs(u - u_end) <= 2 * options.support_radius
-                       for s_li, u, _, _ in supports_u):  # fmt: skip
+                       for s_li, u, _, _ in found):  # fmt: skip
                     continue
                 z = float(
                     np.median(
@@ -660,52 +735,66 @@ def find_spans(
                 past = np.array([np.r_[leg.xy(u_end + sign * d, c_mid), z] for d in BEYOND_M])
                 # Where the corridor ends, its wires end with it: the survey's edge.
                 edge = min(abs(u_end - e) for e in axes[li].extent)
-                if edge > options.support_radius and all(
+                if edge <= options.support_radius or not all(
                     _measurable(views, p, leg, crossing_offset) for p in past
                 ):
-                    # And the images do not show the wires going on (where the
-                    # measurements stopped short of a support, they do).
-                    longest = sorted(g, key=lambda i: -np.ptp(ends[i]))[:3]
-                    goes_on = []
-                    greys: dict[Path, np.ndarray] = {}
-                    for i in longest:
-                        w = out[idx[i]]
-                        first = float(np.mean(leg.ends_u(w))) > u_end
-                        which = 0 if first == _s_grows_along(w, leg) else 1
-                        goes_on.append(_continues(views, w, which, greys))
-                    if any(goes_on):
-                        logger.info(
-                            "spans: %d wires end together at %.1f along the line, but the "
-                            "images show them going on: not the line's end",
-                            len(g),
-                            u_end,
-                        )
-                        continue
-                    # Placed where the wires' measurements end, their median: some stop
-                    # short at the insulators' hardware, some are carried a little past.
-                    u_at = float(np.median(ends[g, side]))
-                    supports_u.append((li, u_at, "wires ending", {out[idx[i]].wire_id for i in g}))
+                    continue
+                # And the images do not show the wires going on (where the measurements
+                # stopped short of a support, they do).
+                longest = sorted(g, key=lambda i: -np.ptp(ends[i]))[:3]
+                goes_on = []
+                greys: dict[Path, np.ndarray] = {}
+                for i in longest:
+                    w = out[idx[i]]
+                    first = float(np.mean(leg.ends_u(w))) > u_end
+                    which = 0 if first == _s_grows_along(w, leg) else 1
+                    goes_on.append(_continues(views, w, which, greys))
+                if any(goes_on):
+                    logger.info(
+                        "spans: %d wires end together at %.1f along the line, but the "
+                        "images show them going on: not the line's end",
+                        len(g),
+                        u_end,
+                    )
+                    continue
+                # Placed where the wires' measurements end, their median: some stop short at
+                # the insulators' hardware, some are carried a little past.
+                u_at = float(np.median(ends[g, side]))
+                ends_found.append((li, u_at, "wires ending", {out[idx[i]].wire_id for i in g}))
+    return ends_found
 
-    # 4. Cut every wire at each support of its leg that it runs across.
+
+def _cut_at_supports(
+    work: _Work,
+    found: list[_Found],
+    axes: list[_Leg],
+    pts_in_world: F64,
+    options: SpanOptions,
+    wires_options: WiresOptions,
+    max_across: float,
+) -> None:
+    """Cut every wire of ``work`` at each support of its leg that it runs across. A
+    conductor hangs from the support: its two pieces meet there in a bend. Running smoothly
+    through it, the wire is no conductor of this line (a false pairing: dropped); a piece
+    that does not meet the other there is a tail the curve took past the support."""
+    out = work.wires
     changed = True
     while changed:
         changed = False
         for k in range(len(out)):
-            li = out_legs[k]
+            li = work.legs[k]
             leg = axes[li]
             lo, hi = leg.ends_u(out[k])
-            for s_li, u, _, _ in supports_u:
+            for s_li, u, _, _ in found:
                 r = options.support_radius
                 if s_li != li or not (lo + r < u < hi - r):
                     continue
-                cut = _cut(out[k], leg.s_of(out[k], u), pts_in_world, leg, wires_options, next_id)
+                cut = _cut(
+                    out[k], leg.s_of(out[k], u), pts_in_world, leg, wires_options, work.next_id
+                )
                 if cut is None:
                     continue
-                next_id += 1
-                # A conductor hangs from the support: its two pieces meet there in a bend.
-                # Running smoothly through it, the wire is no conductor of this line (a
-                # false pairing); a piece that does not meet the other there is a tail the
-                # curve took past the support (points of another pairing).
+                work.next_id += 1
                 meet = _meeting(cut[0], cut[1], leg, u, options, max_across)
                 keep = list(cut)
                 short = [w for w in cut if np.ptp(leg.ends_u(w)) < options.max_meeting_gap / 2]
@@ -723,42 +812,31 @@ def find_spans(
                         u,
                         "left out (a false pairing)" if not keep else "the tail left out",
                     )
-                cut_ids.update(w.wire_id for w in keep)
+                work.cut_ids.update(w.wire_id for w in keep)
                 out[k : k + 1] = keep
-                source[k : k + 1] = [source[k]] * len(keep)
-                out_legs[k : k + 1] = [li] * len(keep)
+                work.source[k : k + 1] = [work.source[k]] * len(keep)
+                work.legs[k : k + 1] = [li] * len(keep)
                 changed = True
                 break
             if changed:
                 break
 
-    # A piece cut off at a support may lie on the next span's wire of the same conductor
-    # (one curve took the points of both near the support, where they run close): it is
-    # that wire's, not a wire of its own.
-    out, source, out_legs = _absorb_cut_pieces(
-        out, source, out_legs, cut_ids, pts_in_world, axes, wires_options
-    )
 
-    # The cut pieces end at their supports now: where they meet places each support again
-    # (a wire carried past one had bent the curve that placed it).
-    supports_u = [
-        (li, _met_again(out, out_legs, axes[li], li, u, options, max_across), how, ids)
-        if how != "wires ending"
-        else (li, u, how, ids)
-        for li, u, how, ids in supports_u
-    ]
-
-    # 5. Supports of two legs at one place: an angle support, and the legs one line.
-    located = []  # (legs, xy, found_by, wire ids)
-    for li, u, how, ids in supports_u:
+def _located(
+    work: _Work, axes: list[_Leg], found: list[_Found], options: SpanOptions, max_across: float
+) -> list[_Located]:
+    """Each support in plan (midway across the wires that touch it); supports of two legs
+    at one place are one angle support, placed where each conductor's two spans' vertical
+    planes cross."""
+    out = work.wires
+    located = []
+    for li, u, how, ids in found:
         leg = axes[li]
-        near = [
-            k for k in range(len(out)) if out_legs[k] == li and _touches(out[k], leg, u, options)
-        ]
+        near = [k for k in work.on_leg(li) if _touches(out[k], leg, u, options)]
         cs = [float(leg.c(out[k].points(np.array([leg.s_of(out[k], u)]))[:, :2])[0]) for k in near]
         c_mid = 0.5 * (min(cs) + max(cs)) if cs else 0.0
         located.append(([li], leg.xy(u, c_mid), how, set(ids) | {out[k].wire_id for k in near}))
-    merged: list[tuple[list[int], F64, str, set[int]]] = []
+    merged: list[_Located] = []
     for item in located:
         for m in merged:
             if np.linalg.norm(m[1] - item[1]) <= 2 * options.support_radius and set(m[0]) != set(
@@ -774,26 +852,42 @@ def find_spans(
     # at its attachment: the support lies midway between the outermost of those crossings.
     for i, m in enumerate(merged):
         if len(set(m[0])) > 1:
-            at = _plane_crossings(out, out_legs, m, axes, options, max_across)
+            at = _plane_crossings(out, work.legs, m, axes, options, max_across)
             if len(at) >= 2:
                 d, arm = _arm(axes, m[0])
                 c = at @ arm
                 m[1][:] = np.mean(at @ d) * d + 0.5 * (c.min() + c.max()) * arm
                 merged[i] = (m[0], m[1], "spans crossing", m[3])
+    return merged
 
-    # Lines: legs joined at a support they share.
-    n_legs = len(axes)
+
+def _lines(work: _Work, n_legs: int, located: list[_Located]) -> tuple[I64, dict[int, int]]:
+    """Legs joined at a support they share are one line: each leg's line label, and the
+    lines numbered from 1 in the order of their first leg (the main line first)."""
     rows, cols = list(range(n_legs)), list(range(n_legs))
-    for m in merged:
+    for m in located:
         rows += [m[0][0]] * len(m[0])
         cols += m[0]
     graph = coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(n_legs, n_legs))
     _, line_of_leg = connected_components(graph, directed=False)
-    # Lines numbered in the order of their first leg (the main line first).
-    with_wires = [int(line_of_leg[li]) for li in out_legs]
+    with_wires = [int(line_of_leg[li]) for li in work.legs]
     line_ids = {lab: n + 1 for n, lab in enumerate(dict.fromkeys(with_wires))}
+    return line_of_leg, line_ids
 
-    # 6. Chainage along each line, spans between its supports, attachments, conductors.
+
+def _placed(
+    work: _Work,
+    axes: list[_Leg],
+    merged: list[_Located],
+    line_of_leg: I64,
+    line_ids: dict[int, int],
+    ground_height: Callable[[F64], F64],
+    options: SpanOptions,
+) -> Spans:
+    """Chainage along each line, the supports numbered along it, each wire's span between
+    them, its attachments (its fitted curve extended to them), the supports' heights and
+    wires, and the conductors."""
+    out, out_legs = work.wires, work.legs
     chainage = _chainages(axes, merged, line_of_leg, out, out_legs)
     sup_ch = [chainage[m[0][0]](m[1]) for m in merged]
     order = sorted(
@@ -891,7 +985,7 @@ def find_spans(
             len(out),
             len(numbers),
         )
-    return Spans(out, placement, supports_out, source, out_legs)
+    return Spans(out, placement, supports_out, work.source, out_legs)
 
 
 def _chainages(

@@ -227,19 +227,6 @@ def _strips(offsets: F64, gap: float) -> list[F64]:
     return np.split(order, cuts)
 
 
-def positions_across(offsets: F64, need: float) -> int:
-    """How many positions across the wire, each at least ``need`` from the one before, the
-    views at ``offsets`` hold. Strips with gaps between them are positions, but so are the
-    ends of an area survey's views spread evenly across a wire at an angle to its strips
-    (shared twolines seed 7: 12 views over 70 m across the pole line, no gap over 9 m:
-    one strip, five positions 9 m apart)."""
-    count, last = 0, -np.inf
-    for x in np.sort(offsets):
-        if x - last >= need:
-            count, last = count + 1, x
-    return count
-
-
 def _strip_of(groups: list[F64], offsets: F64) -> npt.NDArray[np.int64]:
     """The strip (index into ``groups``) of each position across the wire that lies in one."""
     starts = np.array([float(g[0]) for g in groups[1:]])

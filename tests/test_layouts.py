@@ -120,13 +120,17 @@ def test_an_area_survey_over_two_crossing_lines_finds_the_tower_line(crossing_ru
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(
-    strict=True,
-    reason="not found yet: the pole line's 22 mm conductors (0.36 px at half scale) give "
-    "no candidate direction the probes measure wires in (its nearest, 5° off, none)",
-)
 def test_an_area_survey_over_two_crossing_lines_finds_the_pole_line(crossing_run):
+    """The pole line's 22 mm conductors are 0.36 px wide at half scale: the wider look finds
+    their direction at full resolution (shrunk to 800 px they vanish into the texture).
+
+    Measured at this commit: its three conductors 100 %, no ghost; its poles found where its
+    wires end, 0.27 and 0.50 m in plan from the truth, tops within 0.05 m."""
     result, ev, truth, supports = crossing_run
     line2 = [w for w, t in zip(ev.wires, truth, strict=True) if t.line == 2]
-    assert sum(w.completeness >= 0.7 for w in line2) >= 2
+    assert sum(w.completeness >= 0.9 for w in line2) >= 2
     assert {p.line for p in result.placement} == {1, 2}
+    poles = [s for s in supports if s["line"] == 2]
+    for t in poles:
+        d = min(np.hypot(*(np.array(t["base"][:2]) - s.position[:2])) for s in result.line_supports)
+        assert d < 1.0

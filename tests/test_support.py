@@ -367,7 +367,7 @@ def test_positions_across_count_spread_views_not_only_gaps():
     """Two positions across a wire are views at least ``need`` apart across it: strips with a
     gap between them, or views spread evenly over an area survey with no gap (an area
     survey at an angle to a line: one "strip", yet views 70 m apart across it)."""
-    from colmap_powerline.support import positions_across
+    from colmap_powerline.geometry import positions_across
 
     assert positions_across(np.array([]), 9.0) == 0
     assert positions_across(np.array([0.0, 1.0, 2.0]), 9.0) == 1  # one strip, narrow
