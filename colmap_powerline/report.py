@@ -2,6 +2,8 @@
 
 - ``plan.png``: the whole survey in plan: the wires over the ground points, coloured by
   height, and the supports found (towers and poles, by kind, numbered).
+- ``span_<line>_<span>.png``: per span, every wire of it over the distance along the span,
+  the ground under it, the supports at its ends and its lowest clearance.
 - ``profile_<id>.png``: per wire, its height and the ground below it along the span, the
   clearance, the chord and the sag, and the stretches below ``min_clearance_m`` in red.
 - ``pair_<k>.png``: the left image of each pair (decoded at a reduced size), with the wire
@@ -103,6 +105,72 @@ def _plan(result: ReconstructionResult, units: str, path: Path) -> Path:
     )
     if result.wires:
         ax.legend(loc="best", fontsize=8, ncol=2)
+    return _save(fig, path)
+
+
+def _span_profile(
+    result: ReconstructionResult,
+    key: tuple[int, int],
+    units: str,
+    path: Path,
+    ground_model: GroundModel | None = None,
+) -> Path:
+    """All the wires of one span (``key`` = (line, span)) in one profile: each conductor's
+    catenary over the distance along the span from its first support, the ground under the
+    span's axis, the supports at its ends (up to their highest attachment), and the lowest
+    clearance of the span."""
+    ks = [k for k, p in enumerate(result.placement) if (p.line, p.span) == key]
+    ids = {i for k in ks for i in result.placement[k].supports if i is not None}
+    sups = [s for s in result.line_supports if s.support_id in ids]
+    polys = [result.wires[k].polyline(0.5) for k in ks]
+    ends = np.concatenate([p[[0, -1], :2] for p in polys])
+    if len(sups) == 2:
+        origin, far = sups[0].position[:2], sups[1].position[:2]
+    else:
+        origin, far = ends[0], ends[int(np.argmax(np.linalg.norm(ends - ends[0], axis=1)))]
+    along = (far - origin) / max(float(np.linalg.norm(far - origin)), 1e-9)
+    s_all = np.concatenate([(p[:, :2] - origin) @ along for p in polys])
+    if s_all.min() < -0.5 * np.ptp(s_all):  # the far end first: walk from the other one
+        along = -along
+    fig, ax = plt.subplots(figsize=(11, 4.6))
+    lo_s = min(0.0, float(min(((p[:, :2] - origin) @ along).min() for p in polys)))
+    hi_s = max(float(((p[:, :2] - origin) @ along).max()) for p in polys)
+    s_axis = np.linspace(lo_s, hi_s, 400)
+    ground = (ground_model or result.scene.ground).height(origin + s_axis[:, None] * along)
+    ax.fill_between(s_axis, ground.min() - 2, ground, color="0.85", label="ground")
+    ax.plot(s_axis, ground, color="0.4", lw=1)
+    lowest = (np.inf, -1)
+    for k, poly in zip(ks, polys, strict=True):
+        w, m = result.wires[k], result.measures[k]
+        ax.plot(
+            (poly[:, :2] - origin) @ along,
+            poly[:, 2],
+            color=_rgb(w.wire_id),
+            lw=1.8,
+            label=f"wire {w.wire_id} ({m.kind}, sag {m.sag_max_m:.2f})",
+        )
+        lowest = min(lowest, (m.clearance_vertical_m, w.wire_id))
+    for sup in sups:
+        at = float((sup.position[:2] - origin) @ along)
+        ax.vlines(at, sup.position[2], sup.top_z, color="k", lw=3, alpha=0.6)
+        ax.annotate(
+            f"support {sup.support_id} ({sup.kind})",
+            (at, sup.top_z),
+            xytext=(0, 4),
+            textcoords="offset points",
+            ha="center",
+            fontsize=8,
+        )
+    top = max(max(float(p[:, 2].max()) for p in polys), max((s.top_z for s in sups), default=0))
+    ax.set_ylim(ground.min() - 1, top + 0.12 * (top - ground.min()))
+    ax.set_xlabel(f"distance along the span from its first support ({units})")
+    ax.set_ylabel(f"height ({units})")
+    ax.set_title(
+        f"line {key[0]}, span {key[1]}: {len(ks)} wires, lowest clearance {lowest[0]:.2f} "
+        f"{units} (wire {lowest[1]})"
+    )
+    ax.legend(loc="lower right", fontsize=7, ncol=2)
+    ax.grid(alpha=0.3)
     return _save(fig, path)
 
 
@@ -337,6 +405,13 @@ def write_report(
         ("Plan view", _plan(result, units, out / "plan.png")),
         ("Camera positions and pairs", _cameras(result, units, out / "cameras.png")),
     ]
+    for line, span in sorted({(p.line, p.span) for p in result.placement}):
+        figures.append(
+            (
+                f"Line {line}, span {span}: profile",
+                _span_profile(result, (line, span), units, out / f"span_{line}_{span}.png", ground),
+            )
+        )
     for k in range(len(result.wires)):
         figures.append(
             (

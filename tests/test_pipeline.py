@@ -137,6 +137,9 @@ def test_outputs_follow_the_contract(run, medium_span):
     page = (report / "index.html").read_text()
     assert "<th>measured</th>" in page and "<th>pairs vs traced</th>" in page
     names = ["plan.png", "cameras.png"]
+    names += [
+        f"span_{line}_{span}.png" for line, span in {(p.line, p.span) for p in result.placement}
+    ]
     names += [f"profile_{k}.png" for k in range(len(result.wires))]
     names += [f"pair_{k}.png" for k in range(len(result.pairs))]
     for name in names:
