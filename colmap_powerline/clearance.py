@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import csv
 import io
-from collections.abc import Sequence
+from collections.abc import Hashable, Sequence
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
@@ -144,14 +144,26 @@ def measure_wire(
     )
 
 
-def assign_kinds(measures: Sequence[WireMeasures], min_gap_m: float = 4.0) -> None:
+def assign_kinds(
+    measures: Sequence[WireMeasures],
+    min_gap_m: float = 4.0,
+    spans: Sequence[Hashable] | None = None,
+) -> None:
     """Mark shield (earth) wires: the one or two wires that run clearly above all the others
     (at least ``min_gap_m`` above the next), when the wires below them are whole three-phase
     circuits (a multiple of three). Phase conductors hang from cross-arms below the tower
     peak that carries the shield wires; but when the shields were not found, the top phases
     of a double circuit are just as clearly above the rest (the package's demo: two of six
     conductors 5 m above the others), and an energised conductor reported as an earth wire
-    is the worse mistake: then every wire stays a conductor."""
+    is the worse mistake: then every wire stays a conductor.
+
+    ``spans``: the span of each wire (e.g. (line, span)); the wires of each span are judged
+    on their own (over the whole survey, only the one or two highest wires of all its spans
+    could be shields: shared multispan seed 3 reported none of its six)."""
+    if spans is not None:
+        for key in dict.fromkeys(spans):
+            assign_kinds([m for m, s in zip(measures, spans, strict=True) if s == key], min_gap_m)
+        return
     heights = np.array([m.clearance_vertical_m for m in measures])
     if len(heights) < 4:
         return

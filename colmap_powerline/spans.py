@@ -115,6 +115,9 @@ class LineSupport:
     wire_ids: tuple[int, ...]
     found_by: str
     reach_m: float = 0.0  # plan distance from its centre to its farthest attachment
+    top_wire: int | None = None  # the wire of its highest attachment
+    top_from: str = ""  # that wire's kind (``shield``/``conductor``, set once the kinds are
+    # known): a conductor where the line's shields were not found, the structure is higher
 
     def to_json(self, convert: Callable[[F64], F64] | None = None) -> dict:
         pos = self.position if convert is None else convert(self.position[None])[0]
@@ -129,6 +132,7 @@ class LineSupport:
             "wires": list(self.wire_ids),
             "found_by": self.found_by,
             "reach_m": self.reach_m,
+            "top_from": self.top_from or None,
         }
 
 
@@ -966,6 +970,7 @@ def _placed(
         supports_out[sid] = dataclasses.replace(
             supports_out[sid],
             top_z=float(max(p[2] for _, p in att)),
+            top_wire=out[max(att, key=lambda a: float(a[1][2]))[0]].wire_id,
             wire_ids=tuple(sorted(out[k].wire_id for k, _ in att)),
             reach_m=float(max(np.hypot(*(p[:2] - supports_out[sid].position[:2])) for _, p in att)),
         )
@@ -1037,8 +1042,8 @@ def _chainages(
 
 
 SUPPORT_COLUMNS = (
-    "support_id", "line", "kind", "x", "y", "ground_z", "top_z", "height_m", "turn_deg",
-    "found_by", "wires",
+    "support_id", "line", "kind", "x", "y", "ground_z", "top_z", "height_m", "top_from",
+    "turn_deg", "found_by", "wires",
 )  # fmt: skip
 SPAN_COLUMNS = ("line", "span", "first_support", "last_support", "conductor")
 
@@ -1054,8 +1059,9 @@ def supports_csv(
         rows.append(
             ",".join(
                 [str(d["id"]), str(d["line"]), d["kind"]]
-                + [f"{v:.3f}" for v in (x, y, z, d["top_z"], d["height_m"], d["turn_deg"])]
-                + [d["found_by"], " ".join(str(w) for w in d["wires"])]
+                + [f"{v:.3f}" for v in (x, y, z, d["top_z"], d["height_m"])]
+                + [d["top_from"] or "", f"{d['turn_deg']:.3f}", d["found_by"]]
+                + [" ".join(str(w) for w in d["wires"])]
             )
         )
     return "\n".join(rows) + "\n"

@@ -103,6 +103,22 @@ def test_shield_wires_are_the_ones_clearly_above():
     assert {m.kind for m in measures} == {"conductor"}
 
 
+def test_shield_wires_are_judged_per_span():
+    """Over a line of several spans the wires of each span are judged on their own: two
+    spans on lower ground (every wire of them lower than the first span's conductors' tops)
+    keep their shields; over the whole survey only the highest one or two wires could be."""
+    ground = _ground()
+    span_1 = [19.0, 19.2, 24.0, 24.1, 29.0, 29.2, 37.0, 37.1]
+    span_2 = [h - 9.0 for h in span_1]
+    heights = span_1 + span_2
+    measures = [measure_wire(_wire(k, float(k), h), ground) for k, h in enumerate(heights)]
+    assign_kinds(measures)
+    assert [m.kind for m in measures].count("shield") < 4  # judged together: wrong
+    measures = [measure_wire(_wire(k, float(k), h), ground) for k, h in enumerate(heights)]
+    assign_kinds(measures, spans=[(1, 1)] * 8 + [(1, 2)] * 8)
+    assert [m.kind for m in measures] == (["conductor"] * 6 + ["shield"] * 2) * 2
+
+
 def _fused_ply(path, n: int, seed: int = 0) -> None:
     """A dense cloud exactly as COLMAP's stereo_fusion writes fused.ply: binary, float
     xyz and normals, uchar colours. Ground over 140 x 60 m, a halo of stray points around

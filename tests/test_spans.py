@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from colmap_powerline.pairs import WireCorridor
-from colmap_powerline.spans import SpanOptions, find_kink, find_spans
+from colmap_powerline.spans import LineSupport, SpanOptions, find_kink, find_spans
 from colmap_powerline.wires import FittedWire, WiresOptions, refit
 
 
@@ -230,3 +230,25 @@ def test_lines_spans_and_supports_are_written(tmp_path):
     table = list(csv.DictReader((tmp_path / "wires.csv").open()))
     assert {(r["line"], r["span"]) for r in table} == {("1", str(k)) for k in (1, 2, 3, 4)}
     assert len({r["conductor"] for r in table}) == len(PHASES)
+
+
+def test_a_support_topped_by_a_conductor_where_the_line_has_shields_is_said(caplog):
+    """A support's top is its highest attachment found: where the line's shields were found
+    at another support but not at this one, its top is a conductor's, it stands higher, and
+    the log says so (supports.csv: top_from)."""
+    from types import SimpleNamespace
+
+    from colmap_powerline.pipeline import _tops_from
+
+    def sup(i: int, top_wire: int) -> LineSupport:
+        return LineSupport(i, 1, "end", np.zeros(3), 40.0, 0.0, (0, 1), "wires ending",
+                           top_wire=top_wire)  # fmt: skip
+
+    wires = [SimpleNamespace(wire_id=i) for i in (0, 1)]
+    measures = [SimpleNamespace(kind="conductor"), SimpleNamespace(kind="shield")]
+    with caplog.at_level("WARNING", logger="colmap_powerline.pipeline"):
+        out = _tops_from([sup(0, 1), sup(1, 0)], wires, measures)
+    assert [s.top_from for s in out] == ["shield", "conductor"]
+    assert [s.to_json()["top_from"] for s in out] == ["shield", "conductor"]
+    said = [r.getMessage() for r in caplog.records]
+    assert len(said) == 1 and said[0].startswith("support 1 (line 1)")
