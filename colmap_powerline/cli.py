@@ -283,6 +283,19 @@ def _lat_lon_alt(text: str) -> tuple[float, float, float]:
     return lat, lon, alt
 
 
+def _georef_flags_given(args: argparse.Namespace) -> list[str]:
+    """The georeferencing flags given a value other than their default."""
+    defaults = {
+        "origin_wgs84": None,
+        "ref_images_path": None,
+        "ref_is_gps": False,
+        "scale_m_per_unit": None,
+        "alignment_max_error": GeoreferenceOptions().max_error_m,
+        "use_gps": True,
+    }
+    return [f"--{k}" for k, v in defaults.items() if getattr(args, k, v) != v]
+
+
 def _georef_options(args: argparse.Namespace) -> GeoreferenceOptions:
     flag = {"max_error_m": "alignment_max_error"}
     try:
@@ -333,13 +346,18 @@ def _cmd_reconstruct(args: argparse.Namespace) -> int:
 
     if args.image_path is None and args.input_path is None:
         raise InputError("give --image_path (and --input_path, or SfM runs first)")
-    result = reconstruct(
-        args.image_path,
-        args.input_path,
-        args.output_path,
-        _reconstruction_options(args),
-        _output_options(args),
-    )
+    options, outputs = _reconstruction_options(args), _output_options(args)  # ranges first
+    if args.input_path is not None:
+        # The georeferencing flags act when SfM runs; a given model is used as it is.
+        given = _georef_flags_given(args) + [f"--{k}" for k in vars(args) if k.startswith("sfm.")]
+        if given:
+            raise InputError(
+                f"{' '.join(given)}: {'acts' if len(given) == 1 else 'act'} only when SfM "
+                "runs (without --input_path); the model "
+                f"{args.input_path} is used as it is (georeference it with `colmap-powerline "
+                "sfm` or COLMAP's model_aligner)"
+            )
+    result = reconstruct(args.image_path, args.input_path, args.output_path, options, outputs)
     units = "m" if result.georeference is not None else " units"
     print(
         f"{len(result.wires)} wires from {len(result.verified)} verified points "

@@ -102,6 +102,25 @@ def test_cli_refuses_a_bad_value_in_one_line_naming_the_flag(tmp_path, capsys, f
     assert json.loads((out / "wires.json").read_text()) == {}
 
 
+@pytest.mark.parametrize(
+    "flags",
+    [
+        ["--scale_m_per_unit", "2"],
+        ["--ref_images_path", "refs.txt"],
+        ["--sfm.max_num_features", "500"],
+    ],
+)
+def test_cli_refuses_sfm_flags_that_would_not_act(tmp_path, capsys, flags):
+    """With --input_path SfM does not run: its flags and the georeferencing flags would be
+    ignored; they are refused in one line instead (an option acts or is refused)."""
+    argv = ["--quiet", "reconstruct", "--image_path", str(tmp_path), "--input_path"]
+    code = main([*argv, str(tmp_path / "model"), "--output_path", str(tmp_path / "out"), *flags])
+    assert code == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and flags[0] in err and "only when SfM runs" in err, err
+    assert not (tmp_path / "out").exists()
+
+
 def test_cli_flags_come_from_the_options():
     """Every field of the options that a flag can carry has exactly one flag (the duplicate
     --wire_azimuth_deg is gone)."""
