@@ -283,32 +283,35 @@ def _lat_lon_alt(text: str) -> tuple[float, float, float]:
     return lat, lon, alt
 
 
+# Each georeferencing flag and the GeoreferenceOptions field it sets.
+_GEOREF_FLAGS = {
+    "use_gps": "use_gps",
+    "origin_wgs84": "origin_wgs84",
+    "alignment_max_error": "max_error_m",
+    "ref_images_path": "ref_images_path",
+    "ref_is_gps": "ref_is_gps",
+    "scale_m_per_unit": "scale_m_per_unit",
+}
+
+
 def _georef_flags_given(args: argparse.Namespace) -> list[str]:
     """The georeferencing flags given a value other than their default."""
-    defaults = {
-        "origin_wgs84": None,
-        "ref_images_path": None,
-        "ref_is_gps": False,
-        "scale_m_per_unit": None,
-        "alignment_max_error": GeoreferenceOptions().max_error_m,
-        "use_gps": True,
-    }
-    return [f"--{k}" for k, v in defaults.items() if getattr(args, k, v) != v]
+    default = GeoreferenceOptions()
+    return [
+        f"--{flag}"
+        for flag, name in _GEOREF_FLAGS.items()
+        if getattr(args, flag) != getattr(default, name)
+    ]
 
 
 def _georef_options(args: argparse.Namespace) -> GeoreferenceOptions:
-    flag = {"max_error_m": "alignment_max_error"}
     try:
         return GeoreferenceOptions(
-            use_gps=args.use_gps,
-            origin_wgs84=args.origin_wgs84,
-            max_error_m=args.alignment_max_error,
-            ref_images_path=args.ref_images_path,
-            ref_is_gps=args.ref_is_gps,
-            scale_m_per_unit=args.scale_m_per_unit,
+            **{name: getattr(args, flag) for flag, name in _GEOREF_FLAGS.items()}
         )
     except OptionError as e:
-        raise OptionError(f"--{flag.get(e.name, e.name)}", e.value, e.expected) from None
+        flag = next(f for f, n in _GEOREF_FLAGS.items() if n == e.name)
+        raise OptionError(f"--{flag}", e.value, e.expected) from None
 
 
 def _cmd_sfm(args: argparse.Namespace) -> int:
