@@ -7,6 +7,7 @@ from .options import OptionError
 from .scene import Scene, SceneImage, load_scene
 
 __all__ = [
+    "ExecutionOptions",
     "InputError",
     "OptionError",
     "OutputOptions",
@@ -28,6 +29,7 @@ _LAZY = {
     "ReconstructionOptions": "results",
     "ReconstructionResult": "results",
     "OutputOptions": "results",
+    "ExecutionOptions": "tasks",
     "run_sfm": "sfm",
     "SfmOptions": "sfm",
 }

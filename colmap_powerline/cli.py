@@ -346,10 +346,12 @@ def _cmd_fill(args: argparse.Namespace) -> int:
 
 def _cmd_reconstruct(args: argparse.Namespace) -> int:
     from .pipeline import reconstruct
+    from .tasks import ExecutionOptions
 
     if args.image_path is None and args.input_path is None:
         raise InputError("give --image_path (and --input_path, or SfM runs first)")
     options, outputs = _reconstruction_options(args), _output_options(args)  # ranges first
+    execution = _options_from_flags(args, ExecutionOptions)
     if args.input_path is not None:
         # The georeferencing flags act when SfM runs; a given model is used as it is.
         given = _georef_flags_given(args) + [f"--{k}" for k in vars(args) if k.startswith("sfm.")]
@@ -360,7 +362,9 @@ def _cmd_reconstruct(args: argparse.Namespace) -> int:
                 f"{args.input_path} is used as it is (georeference it with `colmap-powerline "
                 "sfm` or COLMAP's model_aligner)"
             )
-    result = reconstruct(args.image_path, args.input_path, args.output_path, options, outputs)
+    result = reconstruct(
+        args.image_path, args.input_path, args.output_path, options, outputs, execution
+    )
     units = "m" if result.georeference is not None else " units"
     print(
         f"{len(result.wires)} wires from {len(result.verified)} verified points "
@@ -413,6 +417,7 @@ def build_parser() -> argparse.ArgumentParser:
     demo.set_defaults(func=_cmd_demo)
 
     from .results import OutputOptions, ReconstructionOptions
+    from .tasks import ExecutionOptions
 
     sfm = sub.add_parser("sfm", help="orient the images with pycolmap SfM (+ georeferencing)")
     sfm.add_argument("--image_path", type=Path, required=True)
@@ -438,6 +443,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_georef_flags(rec)
     _add_option_flags(rec, ReconstructionOptions)
     _add_option_flags(rec, OutputOptions)
+    _add_option_flags(rec, ExecutionOptions)
     rec.set_defaults(func=_cmd_reconstruct)
 
     fl = sub.add_parser("fill", help="merge the wires into a dense cloud (PLY, and LAS)")

@@ -18,7 +18,6 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 from scipy.spatial import cKDTree
-from tqdm import tqdm
 
 from .clearance import WireMeasures, assign_kinds, measure_wire
 from .coverage import log_coverage, measured_coverage
@@ -66,6 +65,7 @@ from .support import (
     wire_support,
 )
 from .swaps import swapped_pairings
+from .tasks import ExecutionOptions, Tasks, tasks_for
 from .trace import MIN_REDUNDANCY, MIN_TRACED_SHARE, TraceOptions, trace_wires
 from .triangulate import Primitives, triangulate_pair, wire_centres
 from .verify import VerifiedPoints, WireMaskFn, verify_primitives
@@ -227,7 +227,7 @@ class _Probe:
 
 
 def _probe(
-    scene: Scene, prov: WireCorridor, options: ReconstructionOptions
+    scene: Scene, prov: WireCorridor, options: ReconstructionOptions, tasks: Tasks | None = None
 ) -> tuple[_Probe | None, list[Path]]:
     """Triangulate and verify a few pairs crossing one provisional band; the wires above the
     ground their points make (None: none), and the images decoded."""
@@ -239,7 +239,7 @@ def _probe(
     except InputError as e:
         logger.info("probe %.1f°: %s", azimuth, e)
         return None, []
-    prims, decoded = primitives_for_pairs(scene, pairs, prov, quiet)
+    prims, decoded = primitives_for_pairs(scene, pairs, prov, quiet, tasks)
     if sum(len(p) for p in prims) == 0:
         return None, decoded
     # The views around the pairs are enough to tell wires from other lines.
@@ -304,7 +304,9 @@ def _another_line(probe: _Probe, found: Sequence[_Probe], tolerance_deg: float) 
     )
 
 
-def probe_corridors(scene: Scene, options: ReconstructionOptions) -> list[WireCorridor]:
+def probe_corridors(
+    scene: Scene, options: ReconstructionOptions, tasks: Tasks | None = None
+) -> list[WireCorridor]:
     """Find where the wires are by measuring them: a few pairs per candidate direction.
 
     Long image lines run along the wires, but also along roads, field rows and shadows. For
@@ -330,7 +332,7 @@ def probe_corridors(scene: Scene, options: ReconstructionOptions) -> list[WireCo
             for prov in provisional_corridors(
                 scene, found, found.azimuths_deg[k], options.pairs, heights
             )[:bands]:
-                probe, n = _probe(scene, prov, options)
+                probe, n = _probe(scene, prov, options, tasks)
                 decoded.extend(n)
                 if probe is not None:
                     probes.append(probe)
@@ -409,38 +411,38 @@ def probe_corridors(scene: Scene, options: ReconstructionOptions) -> list[WireCo
     return corridors
 
 
-def primitives_for_pairs(
-    scene: Scene, pairs: list[ImagePair], corridor: WireCorridor, options: ReconstructionOptions
-) -> tuple[list[Primitives], list[Path]]:
-    """Rectify, detect and triangulate every pair. Returns the primitives and images decoded."""
-    out: list[Primitives] = []
-    decoded: list[Path] = []
-    for k, p in enumerate(
-        tqdm(pairs, desc="pairs", unit="pair", disable=not options.show_progress)
-    ):
-        try:
-            geom = rectify_pair(
-                scene, p.left, p.right, options.rectify, options.triangulate.max_wire_height
-            )
-        except PairGeometryError as exc:
-            # One pair the selection's estimate let through (an oblique pair in a probe of a
-            # direction that is not the line's on Seneca) does not stop the run.
-            logger.warning("pair %d skipped: %s", k, exc)
-            out.append(Primitives(np.zeros((0, 3)), np.zeros(0), np.zeros(0), np.zeros(0), k))
-            continue
-        centres = []
-        for side, view in enumerate(geom.sides):
-            image = read_image(view.path)
-            decoded.append(view.path)
-            c, n_px = _detect_rectified(geom, side, image, corridor, options.detect)
-            centres.append(c)
-        prims = triangulate_pair(geom, scene, centres[0], centres[1], k, options.triangulate)
-        left = centres[0]
-        u_src, v_src = geom._source_pixels(0, np.c_[left.u, left.rows + 0.5])
-        seen = u_src > -1e4
-        prims = dataclasses.replace(prims, left_wire_px=np.c_[u_src[seen], v_src[seen]])
-        logger.info(
-            "pair %d %s|%s: %dx%d px rectified, %d + %d wire centres → %d primitives",
+def _pair_primitives(
+    job: tuple[int, ImagePair], scene: Scene, corridor: WireCorridor, options: ReconstructionOptions
+) -> tuple[Primitives, list[Path], tuple[int, str, tuple[Any, ...]]]:
+    """Rectify, detect and triangulate pair ``k`` of ``job`` (one task: it reads only its
+    two images). Returns its primitives, the images decoded and what to log (the log is
+    written where the run is, not on a worker)."""
+    k, p = job
+    try:
+        geom = rectify_pair(
+            scene, p.left, p.right, options.rectify, options.triangulate.max_wire_height
+        )
+    except PairGeometryError as exc:
+        # One pair the selection's estimate let through (an oblique pair in a probe of a
+        # direction that is not the line's on Seneca) does not stop the run.
+        empty = Primitives(np.zeros((0, 3)), np.zeros(0), np.zeros(0), np.zeros(0), k)
+        return empty, [], (logging.WARNING, "pair %d skipped: %s", (k, str(exc)))
+    centres = []
+    decoded = []
+    for side, view in enumerate(geom.sides):
+        image = read_image(view.path)
+        decoded.append(view.path)
+        c, n_px = _detect_rectified(geom, side, image, corridor, options.detect)
+        centres.append(c)
+    prims = triangulate_pair(geom, scene, centres[0], centres[1], k, options.triangulate)
+    left = centres[0]
+    u_src, v_src = geom._source_pixels(0, np.c_[left.u, left.rows + 0.5])
+    seen = u_src > -1e4
+    prims = dataclasses.replace(prims, left_wire_px=np.c_[u_src[seen], v_src[seen]])
+    log = (
+        logging.INFO,
+        "pair %d %s|%s: %dx%d px rectified, %d + %d wire centres → %d primitives",
+        (
             k,
             p.left.name,
             p.right.name,
@@ -449,8 +451,36 @@ def primitives_for_pairs(
             len(centres[0]),
             len(centres[1]),
             len(prims),
-        )
+        ),
+    )
+    return prims, decoded, log
+
+
+def primitives_for_pairs(
+    scene: Scene,
+    pairs: list[ImagePair],
+    corridor: WireCorridor,
+    options: ReconstructionOptions,
+    tasks: Tasks | None = None,
+) -> tuple[list[Primitives], list[Path]]:
+    """Rectify, detect and triangulate every pair, each pair one task of ``tasks`` (None:
+    in this process). Returns the primitives, in the pairs' order, and the images decoded."""
+    results = (tasks or Tasks()).map(
+        _pair_primitives,
+        list(enumerate(pairs)),
+        scene,
+        corridor,
+        options,
+        desc="pairs",
+        unit="pair",
+        show_progress=options.show_progress,
+    )
+    out: list[Primitives] = []
+    decoded: list[Path] = []
+    for prims, paths, (level, message, args) in results:
+        logger.log(level, message, *args)
         out.append(prims)
+        decoded += paths
     return out, decoded
 
 
@@ -500,6 +530,7 @@ def reconstruct(
     output_path: Path | str | None = None,
     options: ReconstructionOptions | None = None,
     outputs: OutputOptions | None = None,
+    execution: ExecutionOptions | None = None,
 ) -> ReconstructionResult:
     """Reconstruct every wire of every line seen by a COLMAP model's images, then (with
     ``output_path``) write them: :func:`write_outputs`.
@@ -513,11 +544,15 @@ def reconstruct(
         options: the options of every stage (not changed).
         outputs: what is written besides the output contract's files; its dense cloud
             also gives the ground for the clearance.
+        execution: where the pairs run (here, or on Dask workers); the outputs are the
+            same wherever they run.
     """
     options = options or ReconstructionOptions()
     outputs = outputs or OutputOptions()
+    execution = execution or ExecutionOptions()
     validate(options)
     validate(outputs)
+    validate(execution)
     if outputs.dense_path is not None:
         open_ply(outputs.dense_path)  # a missing or unreadable cloud stops the run now
     timings: dict[str, float] = {}
@@ -542,18 +577,19 @@ def reconstruct(
     scene = load_scene(input_path, image_path, skip_bad_images=options.skip_bad_images)
     timings["scene"] = time.perf_counter() - t0
 
-    t0 = time.perf_counter()
-    corridors = probe_corridors(scene, options)
-    timings["pairs"] = time.perf_counter() - t0
-    decoded = [p for c in corridors for p in c.decoded]
-    parts = []
-    for k, c in enumerate(corridors):
-        try:
-            parts.append(reconstruct_corridor(scene, c, options, timings))
-        except InputError as e:
-            if k == 0:
-                raise
-            logger.warning("line at %.1f°: %s", c.azimuth_deg, e)
+    with tasks_for(execution) as tasks:
+        t0 = time.perf_counter()
+        corridors = probe_corridors(scene, options, tasks)
+        timings["pairs"] = time.perf_counter() - t0
+        decoded = [p for c in corridors for p in c.decoded]
+        parts = []
+        for k, c in enumerate(corridors):
+            try:
+                parts.append(reconstruct_corridor(scene, c, options, timings, tasks))
+            except InputError as e:
+                if k == 0:
+                    raise
+                logger.warning("line at %.1f°: %s", c.azimuth_deg, e)
     part = _merged(parts, options.wires.inlier_distance)
     corridor, pairs, primitives, verified = (
         part.corridor,
@@ -731,6 +767,7 @@ def reconstruct_corridor(
     corridor: WireCorridor,
     options: ReconstructionOptions,
     timings: dict[str, float] | None = None,
+    tasks: Tasks | None = None,
 ) -> CorridorResult:
     """Every wire of one corridor (a line, or a straight leg of one): pairs crossing it,
     their primitives verified in the other views, wires split, fitted, judged, traced.
@@ -745,7 +782,7 @@ def reconstruct_corridor(
     decoded: list[Path] = []
 
     t0 = time.perf_counter()
-    primitives, n = primitives_for_pairs(scene, pairs, corridor, options)
+    primitives, n = primitives_for_pairs(scene, pairs, corridor, options, tasks)
     decoded += n
     _add_time(timings, "rectify_detect_triangulate", t0)
     if sum(len(p) for p in primitives) == 0:

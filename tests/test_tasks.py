@@ -1,0 +1,91 @@
+"""Pieces of a run on Dask workers: the same results, in the same order, as in this process."""
+
+from __future__ import annotations
+
+import filecmp
+import json
+import operator
+import socket
+
+import numpy as np
+import pytest
+
+from colmap_powerline import OptionError
+from colmap_powerline.cli import main
+from colmap_powerline.pairs import PairsOptions, select_pairs
+from colmap_powerline.pipeline import ReconstructionOptions, primitives_for_pairs, probe_corridor
+from colmap_powerline.tasks import ExecutionOptions, Tasks, tasks_for
+
+AZIMUTH = 35.0  # the small span's wires (conftest)
+
+
+def test_tasks_keep_the_order_here_and_on_dask():
+    here = Tasks().map(operator.mul, [3, 1, 2], 10)
+    assert here == [30, 10, 20]
+    with tasks_for(ExecutionOptions(workers=2)) as tasks:
+        assert tasks.distributed
+        assert tasks.map(operator.mul, list(range(20)), 10) == [10 * k for k in range(20)]
+    with tasks_for(ExecutionOptions()) as tasks:
+        assert not tasks.distributed
+
+
+def test_execution_options_are_checked():
+    with pytest.raises(OptionError, match="workers"):
+        ExecutionOptions(workers=-1)
+
+
+def test_pairs_on_dask_workers_are_the_same_as_here(small_scene):
+    options = ReconstructionOptions(
+        pairs=PairsOptions(wire_azimuth_deg=AZIMUTH, max_pairs=3), show_progress=False
+    )
+    corridor = probe_corridor(small_scene, options)
+    pairs = select_pairs(small_scene, corridor, options.pairs)
+    here, decoded_here = primitives_for_pairs(small_scene, pairs, corridor, options)
+    with tasks_for(ExecutionOptions(workers=2)) as tasks:
+        there, decoded_there = primitives_for_pairs(small_scene, pairs, corridor, options, tasks)
+    assert decoded_here == decoded_there
+    assert [p.pair_index for p in there] == list(range(len(pairs)))
+    for a, b in zip(here, there, strict=True):
+        assert len(a) > 0
+        np.testing.assert_array_equal(a.pts_in_world, b.pts_in_world)
+        np.testing.assert_array_equal(a.left_wire_px, b.left_wire_px)
+
+
+def _cli(small_span, out, *more):
+    return main(
+        [
+            "--quiet",
+            "reconstruct",
+            "--image_path",
+            str(small_span.images),
+            "--input_path",
+            str(small_span.sparse),
+            "--output_path",
+            str(out),
+            "--pairs.wire_azimuth_deg",
+            str(AZIMUTH),
+            "--pairs.max_pairs",
+            "3",
+            *more,
+        ]
+    )
+
+
+def test_a_run_on_two_workers_writes_the_same_outputs(small_span, tmp_path):
+    assert _cli(small_span, tmp_path / "here") == 0
+    assert _cli(small_span, tmp_path / "dask", "--workers", "2") == 0
+    for name in ("wires.csv", "supports.csv", "wire_points.ply", "wires.ply"):
+        assert filecmp.cmp(tmp_path / "here" / name, tmp_path / "dask" / name, shallow=False), name
+    here, dask = (json.loads((tmp_path / d / "wires.json").read_text()) for d in ("here", "dask"))
+    assert here["wires"] and here["wires"] == dask["wires"]
+
+
+def test_a_scheduler_that_is_not_there_is_one_line(small_span, tmp_path, capsys):
+    with socket.socket() as s:  # a local port nobody listens on
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    code = _cli(small_span, tmp_path / "out", "--scheduler", f"tcp://127.0.0.1:{port}")
+    assert code == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "no Dask scheduler at" in err[0], err
+    assert not (tmp_path / "out" / "wires.json").exists()
