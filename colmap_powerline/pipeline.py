@@ -227,7 +227,7 @@ class _Probe:
 
 
 def _probe(
-    scene: Scene, prov: WireCorridor, options: ReconstructionOptions, tasks: Tasks | None = None
+    scene: Scene, prov: WireCorridor, options: ReconstructionOptions
 ) -> tuple[_Probe | None, list[Path]]:
     """Triangulate and verify a few pairs crossing one provisional band; the wires above the
     ground their points make (None: none), and the images decoded."""
@@ -239,7 +239,7 @@ def _probe(
     except InputError as e:
         logger.info("probe %.1f°: %s", azimuth, e)
         return None, []
-    prims, decoded = primitives_for_pairs(scene, pairs, prov, quiet, tasks)
+    prims, decoded = primitives_for_pairs(scene, pairs, prov, quiet)
     if sum(len(p) for p in prims) == 0:
         return None, decoded
     # The views around the pairs are enough to tell wires from other lines.
@@ -290,6 +290,13 @@ def _probe(
     return _Probe(length, len(wires), prov, verified.pts_in_world[idx], measured), decoded
 
 
+def _probe_task(
+    prov: WireCorridor, scene: Scene, options: ReconstructionOptions
+) -> tuple[_Probe | None, list[Path]]:
+    """:func:`_probe` as one task."""
+    return _probe(scene, prov, options)
+
+
 def probe_corridor(scene: Scene, options: ReconstructionOptions) -> WireCorridor:
     """The main line's corridor: the first of :func:`probe_corridors`."""
     return probe_corridors(scene, options)[0]
@@ -328,14 +335,18 @@ def probe_corridors(
         return max(probes, key=lambda p: p.length) if probes else None
 
     def probe_all(found: DirectionCandidates, ks: Sequence[int], bands: int = 2) -> None:
-        for k in ks:
+        # Each probe is a task of its own (its pairs run one after the other in it).
+        provs = [
+            prov
+            for k in ks
             for prov in provisional_corridors(
                 scene, found, found.azimuths_deg[k], options.pairs, heights
-            )[:bands]:
-                probe, n = _probe(scene, prov, options, tasks)
-                decoded.extend(n)
-                if probe is not None:
-                    probes.append(probe)
+            )[:bands]
+        ]
+        for probe, n in (tasks or Tasks()).map(_probe_task, provs, scene, options):
+            decoded.extend(n)
+            if probe is not None:
+                probes.append(probe)
 
     order = list(np.argsort(cands.weights)[::-1][: options.pairs.probe_candidates])
     probe_all(cands, order)
@@ -413,10 +424,9 @@ def probe_corridors(
 
 def _pair_primitives(
     job: tuple[int, ImagePair], scene: Scene, corridor: WireCorridor, options: ReconstructionOptions
-) -> tuple[Primitives, list[Path], tuple[int, str, tuple[Any, ...]]]:
+) -> tuple[Primitives, list[Path]]:
     """Rectify, detect and triangulate pair ``k`` of ``job`` (one task: it reads only its
-    two images). Returns its primitives, the images decoded and what to log (the log is
-    written where the run is, not on a worker)."""
+    two images). Returns its primitives and the images decoded."""
     k, p = job
     try:
         geom = rectify_pair(
@@ -425,8 +435,8 @@ def _pair_primitives(
     except PairGeometryError as exc:
         # One pair the selection's estimate let through (an oblique pair in a probe of a
         # direction that is not the line's on Seneca) does not stop the run.
-        empty = Primitives(np.zeros((0, 3)), np.zeros(0), np.zeros(0), np.zeros(0), k)
-        return empty, [], (logging.WARNING, "pair %d skipped: %s", (k, str(exc)))
+        logger.warning("pair %d skipped: %s", k, exc)
+        return Primitives(np.zeros((0, 3)), np.zeros(0), np.zeros(0), np.zeros(0), k), []
     centres = []
     decoded = []
     for side, view in enumerate(geom.sides):
@@ -439,21 +449,18 @@ def _pair_primitives(
     u_src, v_src = geom._source_pixels(0, np.c_[left.u, left.rows + 0.5])
     seen = u_src > -1e4
     prims = dataclasses.replace(prims, left_wire_px=np.c_[u_src[seen], v_src[seen]])
-    log = (
-        logging.INFO,
+    logger.info(
         "pair %d %s|%s: %dx%d px rectified, %d + %d wire centres → %d primitives",
-        (
-            k,
-            p.left.name,
-            p.right.name,
-            geom.widths_px[0],
-            geom.height_px,
-            len(centres[0]),
-            len(centres[1]),
-            len(prims),
-        ),
+        k,
+        p.left.name,
+        p.right.name,
+        geom.widths_px[0],
+        geom.height_px,
+        len(centres[0]),
+        len(centres[1]),
+        len(prims),
     )
-    return prims, decoded, log
+    return prims, decoded
 
 
 def primitives_for_pairs(
@@ -477,8 +484,7 @@ def primitives_for_pairs(
     )
     out: list[Primitives] = []
     decoded: list[Path] = []
-    for prims, paths, (level, message, args) in results:
-        logger.log(level, message, *args)
+    for prims, paths in results:
         out.append(prims)
         decoded += paths
     return out, decoded

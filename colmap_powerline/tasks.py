@@ -83,11 +83,60 @@ class Tasks:
                 return out
             from distributed import as_completed
 
+            level = logging.getLogger(PACKAGE).getEffectiveLevel()
             sent = [self._client.scatter(s, broadcast=True) for s in shared]
-            futures = self._client.map(fn, list(items), *[[s] * len(items) for s in sent])
+            futures = self._client.map(
+                _logged,
+                [fn] * len(items),
+                [level] * len(items),
+                list(items),
+                *[[s] * len(items) for s in sent],
+                pure=False,
+            )
             for _ in as_completed(futures):
                 bar.update()
-            return list(self._client.gather(futures))
+            out = []
+            for result, records in self._client.gather(futures):
+                for record in records:
+                    logging.getLogger(record.name).handle(record)
+                out.append(result)
+            return out
+
+
+PACKAGE = __name__.rsplit(".", 1)[0]
+
+
+class _Records(logging.Handler):
+    """Keeps the records a task logs, their messages formatted (their arguments may not
+    travel back from a worker)."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.records: list[logging.LogRecord] = []
+
+    def emit(self, record: logging.LogRecord) -> None:
+        record.msg, record.args = record.getMessage(), None
+        record.exc_info = record.exc_text = None
+        self.records.append(record)
+
+
+def _logged(
+    fn: Callable[..., T], level: int, item: Any, *shared: Any
+) -> tuple[T, list[logging.LogRecord]]:
+    """``fn(item, *shared)`` on a worker, with what it logged at ``level`` and above (the
+    run's level), to be logged where the run is, in the pieces' order."""
+    logger_ = logging.getLogger(PACKAGE)
+    handler = _Records()
+    old_level, old_propagate = logger_.level, logger_.propagate
+    logger_.addHandler(handler)
+    logger_.setLevel(level)
+    logger_.propagate = False  # not also to the worker's own log
+    try:
+        return fn(item, *shared), handler.records
+    finally:
+        logger_.removeHandler(handler)
+        logger_.setLevel(old_level)
+        logger_.propagate = old_propagate
 
 
 @contextlib.contextmanager

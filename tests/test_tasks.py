@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import filecmp
 import json
+import logging
 import operator
 import socket
 
@@ -34,15 +35,24 @@ def test_execution_options_are_checked():
         ExecutionOptions(workers=-1)
 
 
-def test_pairs_on_dask_workers_are_the_same_as_here(small_scene):
+def test_pairs_on_dask_workers_are_the_same_as_here(small_scene, caplog):
+    """The same primitives, and the same log, in the pairs' order: what a task logs on a
+    worker is logged where the run is."""
     options = ReconstructionOptions(
         pairs=PairsOptions(wire_azimuth_deg=AZIMUTH, max_pairs=3), show_progress=False
     )
     corridor = probe_corridor(small_scene, options)
     pairs = select_pairs(small_scene, corridor, options.pairs)
+    caplog.set_level(logging.INFO, logger="colmap_powerline")
+    caplog.clear()
     here, decoded_here = primitives_for_pairs(small_scene, pairs, corridor, options)
+    log_here = [r.getMessage() for r in caplog.records if r.name.endswith("pipeline")]
     with tasks_for(ExecutionOptions(workers=2)) as tasks:
+        caplog.clear()
         there, decoded_there = primitives_for_pairs(small_scene, pairs, corridor, options, tasks)
+        log_there = [r.getMessage() for r in caplog.records if r.name.endswith("pipeline")]
+    assert len(log_here) == len(pairs) and log_here[0].startswith("pair 0 ")
+    assert log_there == log_here
     assert decoded_here == decoded_there
     assert [p.pair_index for p in there] == list(range(len(pairs)))
     for a, b in zip(here, there, strict=True):
