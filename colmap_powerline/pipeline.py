@@ -588,14 +588,7 @@ def reconstruct(
         corridors = probe_corridors(scene, options, tasks)
         timings["pairs"] = time.perf_counter() - t0
         decoded = [p for c in corridors for p in c.decoded]
-        parts = []
-        for k, c in enumerate(corridors):
-            try:
-                parts.append(reconstruct_corridor(scene, c, options, timings, tasks))
-            except InputError as e:
-                if k == 0:
-                    raise
-                logger.warning("line at %.1f°: %s", c.azimuth_deg, e)
+        parts = _reconstruct_corridors(scene, corridors, options, timings, tasks)
     part = _merged(parts, options.wires.inlier_distance)
     corridor, pairs, primitives, verified = (
         part.corridor,
@@ -766,6 +759,72 @@ def write_outputs(
         result.outputs["report"] = write_report(result, out, options, georef is not None, ground)
         timings["report"] = time.perf_counter() - t0
     return result.outputs
+
+
+def _corridor_task(
+    job: tuple[int, WireCorridor], scene: Scene, options: ReconstructionOptions
+) -> tuple[CorridorResult | None, dict[str, float], str | None]:
+    """:func:`reconstruct_corridor` as one task: its result (None when a line other than the
+    first has no pair or no wire: the message says why) and its stage times."""
+    k, corridor = job
+    timings: dict[str, float] = {}
+    try:
+        return reconstruct_corridor(scene, corridor, options, timings), timings, None
+    except InputError as e:
+        if k == 0:
+            raise
+        return None, timings, str(e)
+
+
+def _reconstruct_corridors(
+    scene: Scene,
+    corridors: Sequence[WireCorridor],
+    options: ReconstructionOptions,
+    timings: dict[str, float],
+    tasks: Tasks | None,
+) -> list[CorridorResult]:
+    """Every corridor's result, in order. On Dask workers each line is a task when there
+    are several (each runs its pairs one after the other); one line runs here, its pairs
+    as tasks. A line other than the first without pairs or wires is left out, with a
+    warning."""
+    tasks = tasks or Tasks()
+    if tasks.distributed and len(corridors) > 1:
+        results = tasks.map(_corridor_task, list(enumerate(corridors)), scene, options)
+        # The pairs came back with copies of the scene's images: the scene's own again.
+        by_name = {v.name: v for v in scene.images}
+
+        def own(p: ImagePair) -> ImagePair:
+            return dataclasses.replace(p, left=by_name[p.left.name], right=by_name[p.right.name])
+
+        results = [
+            (
+                None
+                if part is None
+                else dataclasses.replace(part, pairs=[own(p) for p in part.pairs]),
+                t,
+                why,
+            )
+            for part, t, why in results
+        ]
+    else:
+        results = []
+        for k, c in enumerate(corridors):
+            t: dict[str, float] = {}
+            try:
+                results.append((reconstruct_corridor(scene, c, options, t, tasks), t, None))
+            except InputError as e:
+                if k == 0:
+                    raise
+                results.append((None, t, str(e)))
+    parts = []
+    for c, (part, t, why) in zip(corridors, results, strict=True):
+        for stage, seconds in t.items():
+            timings[stage] = timings.get(stage, 0.0) + seconds
+        if part is None:
+            logger.warning("line at %.1f°: %s", c.azimuth_deg, why)
+        else:
+            parts.append(part)
+    return parts
 
 
 def reconstruct_corridor(

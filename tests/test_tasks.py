@@ -61,6 +61,29 @@ def test_pairs_on_dask_workers_are_the_same_as_here(small_scene, caplog):
         np.testing.assert_array_equal(a.left_wire_px, b.left_wire_px)
 
 
+def test_lines_as_tasks_are_the_same_as_here(small_scene):
+    """Several lines on Dask workers: one task each, the same wires as here, and the pairs
+    refer to the scene's own images again."""
+    from colmap_powerline.pipeline import _reconstruct_corridors
+
+    options = ReconstructionOptions(
+        pairs=PairsOptions(wire_azimuth_deg=AZIMUTH, max_pairs=2), show_progress=False
+    )
+    corridor = probe_corridor(small_scene, options)
+    here = _reconstruct_corridors(small_scene, [corridor, corridor], options, {}, None)
+    with tasks_for(ExecutionOptions(workers=2)) as tasks:
+        there = _reconstruct_corridors(small_scene, [corridor, corridor], options, {}, tasks)
+    assert len(here) == len(there) == 2
+    for a, b in zip(here, there, strict=True):
+        assert len(a.wires) > 0 and len(a.wires) == len(b.wires)
+        np.testing.assert_array_equal(a.verified.pts_in_world, b.verified.pts_in_world)
+        for wa, wb in zip(a.wires, b.wires, strict=True):
+            np.testing.assert_array_equal(wa.point_indices, wb.point_indices)
+        assert all(
+            p.left is small_scene.images[small_scene.images.index(p.left)] for p in b.pairs
+        )
+
+
 def _cli(small_span, out, *more):
     return main(
         [
