@@ -153,7 +153,7 @@ def tasks_for(options: ExecutionOptions | None) -> Iterator[Tasks]:
         raise InputError(f"--workers/--scheduler need dask.distributed: {e}") from e
     if options.scheduler is not None:
         try:
-            client = Client(options.scheduler, timeout="20s")
+            client = Client(options.scheduler, timeout="10s")
         except OSError as e:
             raise InputError(f"no Dask scheduler at {options.scheduler}: {e}") from e
         with client:
