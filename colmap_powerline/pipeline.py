@@ -789,7 +789,17 @@ def _reconstruct_corridors(
     warning."""
     tasks = tasks or Tasks()
     if tasks.distributed and len(corridors) > 1:
-        results = tasks.map(_corridor_task, list(enumerate(corridors)), scene, options)
+        # No progress bars from the workers (the bar over the lines is the run's).
+        quiet = dataclasses.replace(options, show_progress=False)
+        results = tasks.map(
+            _corridor_task,
+            list(enumerate(corridors)),
+            scene,
+            quiet,
+            desc="lines",
+            unit="line",
+            show_progress=options.show_progress,
+        )
         # The pairs came back with copies of the scene's images: the scene's own again.
         by_name = {v.name: v for v in scene.images}
 
