@@ -65,7 +65,7 @@ from .support import (
     wire_support,
 )
 from .swaps import swapped_pairings
-from .tasks import ExecutionOptions, Tasks, tasks_for
+from .tasks import ExecutionOptions, Store, Tasks, digest, run_key, tasks_for
 from .trace import MIN_REDUNDANCY, MIN_TRACED_SHARE, TraceOptions, trace_wires
 from .triangulate import Primitives, triangulate_pair, wire_centres
 from .verify import VerifiedPoints, WireMaskFn, verify_primitives
@@ -583,12 +583,26 @@ def reconstruct(
     scene = load_scene(input_path, image_path, skip_bad_images=options.skip_bad_images)
     timings["scene"] = time.perf_counter() - t0
 
+    # What a run writing its outputs finishes is kept in OUTPUT/.pieces/, by what it
+    # depends on (the model's bytes, the images, the options): started again, it does not
+    # redo it (--redo does).
+    store = None
+    if output_path is not None:
+        quiet = json.dumps(
+            dataclasses.asdict(dataclasses.replace(options, show_progress=False)), default=str
+        )
+        key = run_key(input_path, [v.path for v in scene.images], quiet)
+        store = Store(Path(output_path) / ".pieces" / key, redo=execution.redo)
     with tasks_for(execution) as tasks:
         t0 = time.perf_counter()
-        corridors = probe_corridors(scene, options, tasks)
+        corridors = (
+            store.get("corridors", lambda: probe_corridors(scene, options, tasks))
+            if store is not None
+            else probe_corridors(scene, options, tasks)
+        )
         timings["pairs"] = time.perf_counter() - t0
         decoded = [p for c in corridors for p in c.decoded]
-        parts = _reconstruct_corridors(scene, corridors, options, timings, tasks)
+        parts = _reconstruct_corridors(scene, corridors, options, timings, tasks, store)
     part = _merged(parts, options.wires.inlier_distance)
     corridor, pairs, primitives, verified = (
         part.corridor,
@@ -782,50 +796,55 @@ def _reconstruct_corridors(
     options: ReconstructionOptions,
     timings: dict[str, float],
     tasks: Tasks | None,
+    store: Store | None = None,
 ) -> list[CorridorResult]:
     """Every corridor's result, in order. On Dask workers each line is a task when there
     are several (each runs its pairs one after the other); one line runs here, its pairs
-    as tasks. A line other than the first without pairs or wires is left out, with a
-    warning."""
+    as tasks. With a ``store``, each line is kept when done and taken from it when a run
+    with the same inputs and options did it before. A line other than the first without
+    pairs or wires is left out, with a warning."""
     tasks = tasks or Tasks()
+    names = [f"line_{k}_{digest(c)}" for k, c in enumerate(corridors)]
+    jobs = list(enumerate(corridors))
     if tasks.distributed and len(corridors) > 1:
         # No progress bars from the workers (the bar over the lines is the run's).
         quiet = dataclasses.replace(options, show_progress=False)
         results = tasks.map(
             _corridor_task,
-            list(enumerate(corridors)),
+            jobs,
             scene,
             quiet,
             desc="lines",
             unit="line",
             show_progress=options.show_progress,
+            store=store,
+            names=names,
         )
-        # The pairs came back with copies of the scene's images: the scene's own again.
-        by_name = {v.name: v for v in scene.images}
+    else:
 
-        def own(p: ImagePair) -> ImagePair:
-            return dataclasses.replace(p, left=by_name[p.left.name], right=by_name[p.right.name])
+        def here(job: tuple[int, WireCorridor]) -> Callable[[], Any]:
+            def compute() -> Any:
+                t: dict[str, float] = {}
+                try:
+                    return reconstruct_corridor(scene, job[1], options, t, tasks), t, None
+                except InputError as e:
+                    if job[0] == 0:
+                        raise
+                    return None, t, str(e)
+
+            return compute
 
         results = [
-            (
-                None
-                if part is None
-                else dataclasses.replace(part, pairs=[own(p) for p in part.pairs]),
-                t,
-                why,
-            )
-            for part, t, why in results
+            store.get(name, here(job)) if store is not None else here(job)()
+            for job, name in zip(jobs, names, strict=True)
         ]
-    else:
-        results = []
-        for k, c in enumerate(corridors):
-            t: dict[str, float] = {}
-            try:
-                results.append((reconstruct_corridor(scene, c, options, t, tasks), t, None))
-            except InputError as e:
-                if k == 0:
-                    raise
-                results.append((None, t, str(e)))
+    # Pairs that came back from a worker or from the store hold copies of the scene's
+    # images: the scene's own again.
+    by_name = {v.name: v for v in scene.images}
+
+    def own(p: ImagePair) -> ImagePair:
+        return dataclasses.replace(p, left=by_name[p.left.name], right=by_name[p.right.name])
+
     parts = []
     for c, (part, t, why) in zip(corridors, results, strict=True):
         for stage, seconds in t.items():
@@ -833,7 +852,7 @@ def _reconstruct_corridors(
         if part is None:
             logger.warning("line at %.1f°: %s", c.azimuth_deg, why)
         else:
-            parts.append(part)
+            parts.append(dataclasses.replace(part, pairs=[own(p) for p in part.pairs]))
     return parts
 
 

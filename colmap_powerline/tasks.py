@@ -12,14 +12,18 @@ so the outputs are the same with any number of workers.
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import logging
+import pickle
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any, ClassVar, TypeVar
 
 from tqdm import tqdm
 
 from .errors import InputError
+from .files import write_atomic
 from .options import check_limits
 
 logger = logging.getLogger(__name__)
@@ -46,10 +50,83 @@ class ExecutionOptions:
         },
     )
 
+    redo: bool = field(
+        default=False,
+        metadata={
+            "help": "redo every piece: do not take the pieces a run with the same inputs and "
+            "options finished before from OUTPUT/.pieces/"
+        },
+    )
+
     LIMITS: ClassVar[dict[str, str]] = {"workers": ">= 0"}
 
     def __post_init__(self) -> None:
         check_limits(self)
+
+
+class Store:
+    """Finished pieces of a run, kept on disk (one pickle each, written whole or not at
+    all) so that the same run started again does not redo them: a run cut short loses only
+    the pieces that were in flight. ``folder`` is named by :func:`run_key`: another input or
+    option is another folder."""
+
+    def __init__(self, folder: Path, redo: bool = False) -> None:
+        self.folder = Path(folder)
+        self.redo = redo
+
+    def _path(self, name: str) -> Path:
+        return self.folder / f"{name}.pkl"
+
+    def load(self, name: str) -> tuple[bool, Any]:
+        """(True, the piece) when it was kept (and ``redo`` is off), else (False, None)."""
+        path = self._path(name)
+        if self.redo or not path.is_file():
+            return False, None
+        try:
+            return True, pickle.loads(path.read_bytes())
+        except Exception as e:  # a piece from another version of the package: redone
+            logger.warning("resume: %s unreadable (%s); redoing it", path, e)
+            return False, None
+
+    def save(self, name: str, value: Any) -> None:
+        data = pickle.dumps(value, protocol=pickle.HIGHEST_PROTOCOL)
+        write_atomic(self._path(name), lambda p: p.write_bytes(data))
+
+    def get(self, name: str, compute: Callable[[], T]) -> T:
+        """The kept piece ``name``, or ``compute()`` kept."""
+        found, value = self.load(name)
+        if found:
+            logger.info("resume: %s taken from %s", name, self.folder)
+            return value
+        value = compute()
+        self.save(name, value)
+        return value
+
+
+def run_key(model_path: Path, image_paths: Sequence[Path], *more: Any) -> str:
+    """A digest of what a run's pieces depend on: the model's files (their bytes), each
+    image's path, size and modification time, the package's version and ``more`` (the
+    options, as text)."""
+    from . import __version__
+
+    h = hashlib.sha256(__version__.encode())
+    for f in sorted(Path(model_path).iterdir()):
+        if f.is_file() and f.suffix in (".bin", ".txt", ".json"):
+            h.update(f.name.encode())
+            with f.open("rb") as fh:
+                for chunk in iter(lambda: fh.read(1 << 20), b""):
+                    h.update(chunk)
+    for p in image_paths:
+        st = Path(p).stat()
+        h.update(f"{p}|{st.st_size}|{st.st_mtime_ns}".encode())
+    for m in more:
+        h.update(repr(m).encode())
+    return h.hexdigest()[:16]
+
+
+def digest(obj: Any) -> str:
+    """A short digest of a piece's own description (its ``repr``)."""
+    return hashlib.sha256(repr(obj).encode()).hexdigest()[:12]
 
 
 class Tasks:
@@ -70,15 +147,42 @@ class Tasks:
         desc: str = "",
         unit: str = "it",
         show_progress: bool = False,
+        store: Store | None = None,
+        names: Sequence[str] | None = None,
     ) -> list[T]:
         """``[fn(item, *shared) for item in items]``, in the items' order. On Dask the
-        ``shared`` arguments are sent to each worker once, not with every piece."""
-        bar = tqdm(total=len(items), desc=desc, unit=unit, disable=not show_progress)
+        ``shared`` arguments are sent to each worker once, not with every piece. With a
+        ``store``, the pieces it keeps under ``names`` are taken from it, and each piece done
+        is kept as soon as it is done."""
+        out: list[Any] = [None] * len(items)
+        todo = list(range(len(items)))
+        if store is not None and names is not None:
+            todo = []
+            for i, name in enumerate(names):
+                found, value = store.load(name)
+                if found:
+                    out[i] = value
+                else:
+                    todo.append(i)
+            if len(todo) < len(items):
+                logger.info(
+                    "resume: %d of %d %ss taken from %s",
+                    len(items) - len(todo),
+                    len(items),
+                    unit,
+                    store.folder,
+                )
+
+        def keep(i: int, value: Any) -> None:
+            out[i] = value
+            if store is not None and names is not None:
+                store.save(names[i], value)
+
+        bar = tqdm(total=len(todo), desc=desc, unit=unit, disable=not show_progress)
         with bar:
             if self._client is None:
-                out = []
-                for item in items:
-                    out.append(fn(item, *shared))
+                for i in todo:
+                    keep(i, fn(items[i], *shared))
                     bar.update()
                 return out
             from distributed import as_completed
@@ -87,20 +191,23 @@ class Tasks:
             sent = [self._client.scatter(s, broadcast=True) for s in shared]
             futures = self._client.map(
                 _logged,
-                [fn] * len(items),
-                [level] * len(items),
-                list(items),
-                *[[s] * len(items) for s in sent],
+                [fn] * len(todo),
+                [level] * len(todo),
+                [items[i] for i in todo],
+                *[[s] * len(todo) for s in sent],
                 pure=False,
             )
-            for _ in as_completed(futures):
+            index = {f.key: i for f, i in zip(futures, todo, strict=True)}
+            logs: dict[int, list[logging.LogRecord]] = {}
+            for future in as_completed(futures):
+                value, records = future.result()
+                logs[index[future.key]] = records
+                keep(index[future.key], value)
                 bar.update()
-            out = []
-            for result, records in self._client.gather(futures):
-                for record in records:
-                    logging.getLogger(record.name).handle(record)
-                out.append(result)
-            return out
+        for i in todo:
+            for record in logs[i]:
+                logging.getLogger(record.name).handle(record)
+        return out
 
 
 PACKAGE = __name__.rsplit(".", 1)[0]

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import filecmp
 import json
 import logging
@@ -79,9 +80,7 @@ def test_lines_as_tasks_are_the_same_as_here(small_scene):
         np.testing.assert_array_equal(a.verified.pts_in_world, b.verified.pts_in_world)
         for wa, wb in zip(a.wires, b.wires, strict=True):
             np.testing.assert_array_equal(wa.point_indices, wb.point_indices)
-        assert all(
-            p.left is small_scene.images[small_scene.images.index(p.left)] for p in b.pairs
-        )
+        assert all(p.left is small_scene.images[small_scene.images.index(p.left)] for p in b.pairs)
 
 
 def _cli(small_span, out, *more):
@@ -122,3 +121,69 @@ def test_a_scheduler_that_is_not_there_is_one_line(small_span, tmp_path, capsys)
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "no Dask scheduler at" in err[0], err
     assert not (tmp_path / "out" / "wires.json").exists()
+
+
+def _run(small_span, out, execution=None, **changed):
+    from colmap_powerline.pipeline import reconstruct
+
+    options = ReconstructionOptions(
+        pairs=PairsOptions(wire_azimuth_deg=AZIMUTH, max_pairs=2), show_progress=False
+    )
+    if changed:
+        options = dataclasses.replace(options, **changed)
+    return reconstruct(small_span.images, small_span.sparse, out, options, None, execution)
+
+
+def test_a_run_started_again_takes_its_finished_pieces(small_span, tmp_path, monkeypatch):
+    """The corridors and each line are kept under OUTPUT/.pieces/ when done; the same run
+    again takes them instead of redoing them and writes the same outputs. --redo, or
+    another option, redoes them."""
+    import colmap_powerline.pipeline as pipeline
+
+    out = tmp_path / "out"
+    first = _run(small_span, out)
+    (kept,) = (out / ".pieces").iterdir()
+    assert {p.name.split("_")[0] for p in kept.iterdir()} == {"corridors.pkl", "line"}
+    before = (out / "wires.csv").read_bytes()
+
+    def never(*args, **kwargs):
+        raise AssertionError("redone")
+
+    monkeypatch.setattr(pipeline, "probe_corridors", never)
+    monkeypatch.setattr(pipeline, "reconstruct_corridor", never)
+    again = _run(small_span, out)
+    assert (out / "wires.csv").read_bytes() == before
+    assert len(again.wires) == len(first.wires) > 0
+    images = {id(v) for v in again.scene.images}
+    assert all(id(p.left) in images and id(p.right) in images for p in again.pairs)
+    with pytest.raises(AssertionError, match="redone"):
+        _run(small_span, out, ExecutionOptions(redo=True))
+    with pytest.raises(AssertionError, match="redone"):
+        _run(small_span, out, min_clearance_m=3.0)
+
+
+def test_an_interrupted_run_keeps_what_it_finished(small_span, tmp_path, monkeypatch):
+    """Ctrl-C while a line is reconstructed: the corridors found before are kept, no
+    output is written; started again, the run does not probe again."""
+    import colmap_powerline.pipeline as pipeline
+
+    out = tmp_path / "out"
+    real = pipeline.reconstruct_corridor
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(pipeline, "reconstruct_corridor", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        _run(small_span, out)
+    assert not (out / "wires.json").exists()
+    (kept,) = (out / ".pieces").iterdir()
+    assert [p.name for p in kept.iterdir()] == ["corridors.pkl"]
+
+    def never(*args, **kwargs):
+        raise AssertionError("probed again")
+
+    monkeypatch.setattr(pipeline, "reconstruct_corridor", real)
+    monkeypatch.setattr(pipeline, "probe_corridors", never)
+    result = _run(small_span, out)
+    assert result.wires and (out / "wires.json").exists()
