@@ -584,8 +584,8 @@ def reconstruct(
     timings["scene"] = time.perf_counter() - t0
 
     # What a run writing its outputs finishes is kept in OUTPUT/.pieces/, by what it
-    # depends on (the model's bytes, the images, the options): started again, it does not
-    # redo it (--redo does).
+    # depends on (the model's bytes, the images, the options), until its outputs are
+    # written: a run cut short and started again does not redo it (--redo does).
     store = None
     if output_path is not None:
         quiet = json.dumps(
@@ -712,6 +712,9 @@ def reconstruct(
         )
     if output_path is not None:
         write_outputs(result, Path(output_path), outputs)
+    if store is not None:
+        # The outputs hold the run now: its pieces (tens to hundreds of MB) go.
+        store.clear()
     return result
 
 

@@ -15,6 +15,7 @@ import contextlib
 import hashlib
 import logging
 import pickle
+import shutil
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -66,9 +67,9 @@ class ExecutionOptions:
 
 class Store:
     """Finished pieces of a run, kept on disk (one pickle each, written whole or not at
-    all) so that the same run started again does not redo them: a run cut short loses only
-    the pieces that were in flight. ``folder`` is named by :func:`run_key`: another input or
-    option is another folder."""
+    all) until the run's outputs are written, so that the same run started again does not
+    redo them: a run cut short loses only the pieces that were in flight. ``folder`` is
+    named by :func:`run_key`: another input or option is another folder."""
 
     def __init__(self, folder: Path, redo: bool = False) -> None:
         self.folder = Path(folder)
@@ -91,6 +92,12 @@ class Store:
     def save(self, name: str, value: Any) -> None:
         data = pickle.dumps(value, protocol=pickle.HIGHEST_PROTOCOL)
         write_atomic(self._path(name), lambda p: p.write_bytes(data))
+
+    def clear(self) -> None:
+        """Remove every kept piece (and ``.pieces/`` when nothing else is in it)."""
+        shutil.rmtree(self.folder, ignore_errors=True)
+        with contextlib.suppress(OSError):
+            self.folder.parent.rmdir()
 
     def get(self, name: str, compute: Callable[[], T]) -> T:
         """The kept piece ``name``, or ``compute()`` kept."""

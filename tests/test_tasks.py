@@ -134,37 +134,16 @@ def _run(small_span, out, execution=None, **changed):
     return reconstruct(small_span.images, small_span.sparse, out, options, None, execution)
 
 
-def test_a_run_started_again_takes_its_finished_pieces(small_span, tmp_path, monkeypatch):
-    """The corridors and each line are kept under OUTPUT/.pieces/ when done; the same run
-    again takes them instead of redoing them and writes the same outputs. --redo, or
-    another option, redoes them."""
-    import colmap_powerline.pipeline as pipeline
-
+def test_a_finished_run_leaves_no_pieces(small_span, tmp_path):
     out = tmp_path / "out"
-    first = _run(small_span, out)
-    (kept,) = (out / ".pieces").iterdir()
-    assert {p.name.split("_")[0] for p in kept.iterdir()} == {"corridors.pkl", "line"}
-    before = (out / "wires.csv").read_bytes()
-
-    def never(*args, **kwargs):
-        raise AssertionError("redone")
-
-    monkeypatch.setattr(pipeline, "probe_corridors", never)
-    monkeypatch.setattr(pipeline, "reconstruct_corridor", never)
-    again = _run(small_span, out)
-    assert (out / "wires.csv").read_bytes() == before
-    assert len(again.wires) == len(first.wires) > 0
-    images = {id(v) for v in again.scene.images}
-    assert all(id(p.left) in images and id(p.right) in images for p in again.pairs)
-    with pytest.raises(AssertionError, match="redone"):
-        _run(small_span, out, ExecutionOptions(redo=True))
-    with pytest.raises(AssertionError, match="redone"):
-        _run(small_span, out, min_clearance_m=3.0)
+    assert _run(small_span, out).wires
+    assert (out / "wires.json").exists() and not (out / ".pieces").exists()
 
 
 def test_an_interrupted_run_keeps_what_it_finished(small_span, tmp_path, monkeypatch):
     """Ctrl-C while a line is reconstructed: the corridors found before are kept, no
-    output is written; started again, the run does not probe again."""
+    output is written; started again, the run does not probe again (unless --redo or
+    another option), and once its outputs are written its pieces go."""
     import colmap_powerline.pipeline as pipeline
 
     out = tmp_path / "out"
@@ -183,7 +162,17 @@ def test_an_interrupted_run_keeps_what_it_finished(small_span, tmp_path, monkeyp
     def never(*args, **kwargs):
         raise AssertionError("probed again")
 
-    monkeypatch.setattr(pipeline, "reconstruct_corridor", real)
+    # --redo, or another option, probes again.
     monkeypatch.setattr(pipeline, "probe_corridors", never)
+    with pytest.raises(AssertionError, match="probed again"):
+        _run(small_span, out, ExecutionOptions(redo=True))
+    with pytest.raises(AssertionError, match="probed again"):
+        _run(small_span, out, min_clearance_m=3.0)
+    # The same run: the corridors are taken, the line is done, the outputs written, and
+    # the pieces go.
+    monkeypatch.setattr(pipeline, "reconstruct_corridor", real)
     result = _run(small_span, out)
     assert result.wires and (out / "wires.json").exists()
+    assert not (out / ".pieces").exists()
+    images = {id(v) for v in result.scene.images}
+    assert all(id(p.left) in images and id(p.right) in images for p in result.pairs)
