@@ -16,6 +16,7 @@ import hashlib
 import logging
 import pickle
 import shutil
+import threading
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -221,14 +222,18 @@ PACKAGE = __name__.rsplit(".", 1)[0]
 
 
 class _Records(logging.Handler):
-    """Keeps the records a task logs, their messages formatted (their arguments may not
-    travel back from a worker)."""
+    """Keeps the records a task logs from its own thread (a worker with several threads
+    runs several tasks at once), their messages formatted (their arguments may not travel
+    back from a worker)."""
 
     def __init__(self) -> None:
         super().__init__()
         self.records: list[logging.LogRecord] = []
+        self.thread = threading.get_ident()
 
     def emit(self, record: logging.LogRecord) -> None:
+        if record.thread != self.thread:
+            return
         record.msg, record.args = record.getMessage(), None
         record.exc_info = record.exc_text = None
         self.records.append(record)
