@@ -227,10 +227,10 @@ class _Probe:
 
 
 def _probe(
-    scene: Scene, prov: WireCorridor, options: ReconstructionOptions
+    prov: WireCorridor, scene: Scene, options: ReconstructionOptions
 ) -> tuple[_Probe | None, list[Path]]:
     """Triangulate and verify a few pairs crossing one provisional band; the wires above the
-    ground their points make (None: none), and the images decoded."""
+    ground their points make (None: none), and the images decoded. One task of its own."""
     quiet = dataclasses.replace(options, show_progress=False)
     probe_options = dataclasses.replace(options.pairs, max_pairs=options.pairs.probe_pairs)
     azimuth = prov.azimuth_deg
@@ -290,13 +290,6 @@ def _probe(
     return _Probe(length, len(wires), prov, verified.pts_in_world[idx], measured), decoded
 
 
-def _probe_task(
-    prov: WireCorridor, scene: Scene, options: ReconstructionOptions
-) -> tuple[_Probe | None, list[Path]]:
-    """:func:`_probe` as one task."""
-    return _probe(scene, prov, options)
-
-
 def probe_corridor(scene: Scene, options: ReconstructionOptions) -> WireCorridor:
     """The main line's corridor: the first of :func:`probe_corridors`."""
     return probe_corridors(scene, options)[0]
@@ -343,7 +336,7 @@ def probe_corridors(
                 scene, found, found.azimuths_deg[k], options.pairs, heights
             )[:bands]
         ]
-        for probe, n in (tasks or Tasks()).map(_probe_task, provs, scene, options):
+        for probe, n in (tasks or Tasks()).map(_probe, provs, scene, options):
             decoded.extend(n)
             if probe is not None:
                 probes.append(probe)
@@ -779,14 +772,18 @@ def write_outputs(
 
 
 def _corridor_task(
-    job: tuple[int, WireCorridor], scene: Scene, options: ReconstructionOptions
+    job: tuple[int, WireCorridor],
+    scene: Scene,
+    options: ReconstructionOptions,
+    tasks: Tasks | None,
 ) -> tuple[CorridorResult | None, dict[str, float], str | None]:
-    """:func:`reconstruct_corridor` as one task: its result (None when a line other than the
-    first has no pair or no wire: the message says why) and its stage times."""
+    """:func:`reconstruct_corridor` as one task (its pairs as ``tasks``): its result (None
+    when a line other than the first has no pair or no wire: the message says why) and its
+    stage times."""
     k, corridor = job
     timings: dict[str, float] = {}
     try:
-        return reconstruct_corridor(scene, corridor, options, timings), timings, None
+        return reconstruct_corridor(scene, corridor, options, timings, tasks), timings, None
     except InputError as e:
         if k == 0:
             raise
@@ -808,39 +805,22 @@ def _reconstruct_corridors(
     pairs or wires is left out, with a warning."""
     tasks = tasks or Tasks()
     names = [f"line_{k}_{digest(c)}" for k, c in enumerate(corridors)]
-    jobs = list(enumerate(corridors))
-    if tasks.distributed and len(corridors) > 1:
-        # No progress bars from the workers (the bar over the lines is the run's).
-        quiet = dataclasses.replace(options, show_progress=False)
-        results = tasks.map(
-            _corridor_task,
-            jobs,
-            scene,
-            quiet,
-            desc="lines",
-            unit="line",
-            show_progress=options.show_progress,
-            store=store,
-            names=names,
-        )
-    else:
-
-        def here(job: tuple[int, WireCorridor]) -> Callable[[], Any]:
-            def compute() -> Any:
-                t: dict[str, float] = {}
-                try:
-                    return reconstruct_corridor(scene, job[1], options, t, tasks), t, None
-                except InputError as e:
-                    if job[0] == 0:
-                        raise
-                    return None, t, str(e)
-
-            return compute
-
-        results = [
-            store.get(name, here(job)) if store is not None else here(job)()
-            for job, name in zip(jobs, names, strict=True)
-        ]
+    # Several lines on workers: one task each, its pairs in it, no progress bars from the
+    # workers (the bar over the lines is the run's). Otherwise the lines run here, their
+    # pairs as ``tasks``.
+    side_by_side = tasks.distributed and len(corridors) > 1
+    results = (tasks if side_by_side else Tasks()).map(
+        _corridor_task,
+        list(enumerate(corridors)),
+        scene,
+        dataclasses.replace(options, show_progress=False) if side_by_side else options,
+        None if side_by_side else tasks,
+        desc="lines",
+        unit="line",
+        show_progress=side_by_side and options.show_progress,
+        store=store,
+        names=names,
+    )
     # Pairs that came back from a worker or from the store hold copies of the scene's
     # images: the scene's own again.
     by_name = {v.name: v for v in scene.images}
