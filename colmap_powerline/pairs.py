@@ -441,8 +441,13 @@ def direction_candidates(
 
 
 def _along_extent(scene: Scene, centre: F64, direction: F64, z: float, s_guess: F64) -> F64:
-    """The stretch along the line (from ``centre``) that at least two images see at ``z``."""
-    s_all = np.arange(s_guess.min() - 200.0, s_guess.max() + 200.0, 1.0)
+    """The stretch along the line (from ``centre``) that at least two images see at ``z``:
+    looked for as far as the images reach (a probe measures a few pairs' stretch of a line
+    that may run for kilometres)."""
+    s_cams = (scene.centers_in_world[:, :2] - centre) @ direction
+    lo = min(s_guess.min(), s_cams.min()) - 200.0
+    hi = max(s_guess.max(), s_cams.max()) + 200.0
+    s_all = np.arange(lo, hi, 1.0)
     probe = np.c_[centre + s_all[:, None] * direction, np.full(len(s_all), z)]
     seen = np.sum([v.project(probe)[2] for v in scene.images], axis=0)
     if (seen >= 2).any():

@@ -771,23 +771,172 @@ def write_outputs(
     return result.outputs
 
 
-def _corridor_task(
-    job: tuple[int, WireCorridor],
-    scene: Scene,
-    options: ReconstructionOptions,
-    tasks: Tasks | None,
+@dataclass(frozen=True)
+class _Tile:
+    """A stretch of one line, reconstructed as one task.
+
+    ``corridor`` is the line's corridor cut to the stretch the task works on: the tile's own
+    stretch (``core``, along the line's corridor from its centre) and half an image footprint
+    on each side, so that pairs and views cover the core's ends as they cover its middle;
+    a wire keeps its points in the core only. ``views`` are the images that see the
+    stretch (None: all of them, a line in one tile).
+    """
+
+    line: int
+    index: int
+    corridor: WireCorridor
+    core: tuple[float, float]
+    views: tuple[str, ...] | None
+
+    @property
+    def name(self) -> str:
+        return (
+            f"line_{self.line}_tile_{self.index}_{digest((self.corridor, self.core, self.views))}"
+        )
+
+
+def footprint_along(scene: Scene, corridor: WireCorridor) -> float:
+    """Median length of the images' footprints along the corridor, at its lowest wires."""
+    z = corridor.height_range[0]
+    lengths = []
+    for v in scene.images:
+        w, h = v.width, v.height
+        corners = np.array([[0, 0], [w, 0], [w, h], [0, h]], np.float64)
+        rays, c = v.rays_in_world(corners), v.center_in_world
+        if np.any(rays[:, 2] >= 0):
+            continue  # an image looking at the horizon has no footprint
+        xy = c[:2] + ((z - c[2]) / rays[:, 2])[:, None] * rays[:, :2]
+        s = xy @ corridor.direction_xy
+        lengths.append(float(np.ptp(s)))
+    return float(np.median(lengths)) if lengths else np.inf
+
+
+def line_tiles(
+    scene: Scene, corridor: WireCorridor, line: int, options: ReconstructionOptions
+) -> list[_Tile]:
+    """The tiles of one line: the whole line when it is shorter than 1.5 tiles, else equal
+    stretches of about ``options.tile_footprints`` footprints (whatever the number of
+    workers: the outputs do not depend on it)."""
+    lo, hi = corridor.s_range
+    footprint = footprint_along(scene, corridor)
+    n = round((hi - lo) / (options.tile_footprints * footprint)) if np.isfinite(footprint) else 1
+    if n <= 1:
+        return [_Tile(line, 0, corridor, (-np.inf, np.inf), None)]
+    edges = np.linspace(lo, hi, n + 1)
+    # Half a footprint past each end: the pairs and views that see the core's ends.
+    margin = 0.5 * footprint
+    tiles = []
+    for t in range(n):
+        stretch = (max(lo, edges[t] - margin), min(hi, edges[t + 1] + margin))
+        cut = dataclasses.replace(corridor, s_range=(float(stretch[0]), float(stretch[1])))
+        seen = scene.visibility(cut.sample_points(step=footprint / 20).reshape(-1, 3)).any(1)
+        core = (
+            -np.inf if t == 0 else float(edges[t]),
+            np.inf if t == n - 1 else float(edges[t + 1]),
+        )
+        views = tuple(v.name for v, s in zip(scene.images, seen, strict=True) if s)
+        tiles.append(_Tile(line, t, cut, core, views))
+    logger.info(
+        "line at %.1f°: %.0f long, %d tiles of %.0f (%.1f footprints of %.0f), %d–%d images each",
+        corridor.azimuth_deg,
+        hi - lo,
+        n,
+        (hi - lo) / n,
+        (hi - lo) / n / footprint,
+        footprint,
+        min(len(t.views or ()) for t in tiles),
+        max(len(t.views or ()) for t in tiles),
+    )
+    return tiles
+
+
+def _tile_task(
+    tile: _Tile, scene: Scene, options: ReconstructionOptions, tasks: Tasks | None
 ) -> tuple[CorridorResult | None, dict[str, float], str | None]:
-    """:func:`reconstruct_corridor` as one task (its pairs as ``tasks``): its result (None
-    when a line other than the first has no pair or no wire: the message says why) and its
-    stage times."""
-    k, corridor = job
+    """:func:`reconstruct_corridor` on one tile (its pairs as ``tasks``), with the images that
+    see it: its result, its wires cut to the tile's own stretch (None when it has no pair or
+    no wire: the message says why), and its stage times."""
     timings: dict[str, float] = {}
+    here = (
+        scene
+        if tile.views is None
+        else scene.with_images([scene.image(name) for name in tile.views])
+    )
     try:
-        return reconstruct_corridor(scene, corridor, options, timings, tasks), timings, None
+        part = reconstruct_corridor(here, tile.corridor, options, timings, tasks)
     except InputError as e:
-        if k == 0:
-            raise
         return None, timings, str(e)
+    if tile.views is None:
+        return part, timings, None
+    return _cut_to_core(part, tile, scene, here, options), timings, None
+
+
+def _cut_to_core(
+    part: CorridorResult, tile: _Tile, scene: Scene, here: Scene, options: ReconstructionOptions
+) -> CorridorResult:
+    """A tile's result with its wires' points in its core (a wire left with too few goes), in
+    the whole scene's view numbers. What only judging the tile's wires needed (each view's
+    wire pixels, the points still pending) is dropped: it does not leave the task."""
+    v = part.verified
+    along = (v.pts_in_world[:, :2] - tile.corridor.centre_xy) @ tile.corridor.direction_xy
+    inside = (along >= tile.core[0]) & (along < tile.core[1])
+    wires, supports = [], []
+    for w, sup in zip(part.wires, part.supports, strict=True):
+        idx = w.point_indices[inside[w.point_indices]]
+        if len(idx) == len(w.point_indices):
+            wires.append(w)
+        elif len(idx) >= options.wires.min_points:
+            s = w.plane_coords(v.pts_in_world[idx])[0]
+            wires.append(
+                dataclasses.replace(w, point_indices=idx, s_range=(float(s.min()), float(s.max())))
+            )
+        else:
+            continue
+        supports.append(sup)
+    index_of = {im.name: k for k, im in enumerate(scene.images)}
+    rates = np.full(len(scene.images), np.nan)
+    rates[[index_of[im.name] for im in here.images]] = v.view_hit_rates
+    verified = dataclasses.replace(v, view_hit_rates=rates, wire_pixels=[], pending=None)
+    return dataclasses.replace(part, verified=verified, wires=wires, supports=supports)
+
+
+def _joined_tiles(
+    corridor: WireCorridor, parts: Sequence[CorridorResult], options: ReconstructionOptions
+) -> CorridorResult:
+    """The tiles of one line as the line's result: their points and pairs side by side, and
+    the pieces of a wire that a tile's end cut joined again (one catenary fits them)."""
+    if len(parts) == 1:
+        return dataclasses.replace(parts[0], corridor=corridor)
+    verified = parts[0].verified
+    wires: list[FittedWire] = []
+    supports: list[WireSupport] = []
+    n_pairs = n_prims = 0
+    for k, part in enumerate(parts):
+        if k > 0:
+            verified = verified.concatenated(part.verified, n_pairs, n_prims)
+        n_pts = len(verified) - len(part.verified)
+        for w, sup in zip(part.wires, part.supports, strict=True):
+            wire_id = len(wires)
+            wires.append(
+                dataclasses.replace(w, wire_id=wire_id, point_indices=w.point_indices + n_pts)
+            )
+            supports.append(dataclasses.replace(sup, wire_id=wire_id))
+        n_pairs += len(part.pairs)
+        n_prims += int(sum(len(p) for p in part.primitives))
+    wires, supports = _join_pieces(
+        wires, supports, verified.pts_in_world, corridor.azimuth_deg, options.wires
+    )
+    return CorridorResult(
+        corridor,
+        [p for part in parts for p in part.pairs],
+        [p for part in parts for p in part.primitives],
+        verified,
+        wires,
+        supports,
+        [p for part in parts for p in part.decoded],
+        sum(p.n_candidates for p in parts),
+        sum(p.on_ground for p in parts),
+    )
 
 
 def _reconstruct_corridors(
@@ -798,28 +947,29 @@ def _reconstruct_corridors(
     tasks: Tasks | None,
     store: Store | None = None,
 ) -> list[CorridorResult]:
-    """Every corridor's result, in order. On Dask workers each line is a task when there
-    are several (each runs its pairs one after the other); one line runs here, its pairs
-    as tasks. With a ``store``, each line is kept when done and taken from it when a run
-    with the same inputs and options did it before. A line other than the first without
-    pairs or wires is left out, with a warning."""
+    """Every corridor's result, in order. A long line is cut into tiles
+    (:func:`line_tiles`). On Dask workers each tile is a task when there are several (each
+    runs its pairs one after the other); one tile runs here, its pairs as tasks. With a
+    ``store``, each tile is kept when done and taken from it when a run with the same
+    inputs and options did it before. A line other than the first without pairs or wires
+    is left out, with a warning."""
     tasks = tasks or Tasks()
-    names = [f"line_{k}_{digest(c)}" for k, c in enumerate(corridors)]
-    # Several lines on workers: one task each, its pairs in it, no progress bars from the
-    # workers (the bar over the lines is the run's). Otherwise the lines run here, their
+    tiles = [t for k, c in enumerate(corridors) for t in line_tiles(scene, c, k, options)]
+    # Several tiles on workers: one task each, its pairs in it, no progress bars from the
+    # workers (the bar over the tiles is the run's). Otherwise the tiles run here, their
     # pairs as ``tasks``.
-    side_by_side = tasks.distributed and len(corridors) > 1
+    side_by_side = tasks.distributed and len(tiles) > 1
     results = (tasks if side_by_side else Tasks()).map(
-        _corridor_task,
-        list(enumerate(corridors)),
+        _tile_task,
+        tiles,
         scene,
         dataclasses.replace(options, show_progress=False) if side_by_side else options,
         None if side_by_side else tasks,
-        desc="lines",
-        unit="line",
+        desc="tiles",
+        unit="tile",
         show_progress=side_by_side and options.show_progress,
         store=store,
-        names=names,
+        names=[t.name for t in tiles],
     )
     # Pairs that came back from a worker or from the store hold copies of the scene's
     # images: the scene's own again.
@@ -829,13 +979,25 @@ def _reconstruct_corridors(
         return dataclasses.replace(p, left=by_name[p.left.name], right=by_name[p.right.name])
 
     parts = []
-    for c, (part, t, why) in zip(corridors, results, strict=True):
-        for stage, seconds in t.items():
-            timings[stage] = timings.get(stage, 0.0) + seconds
-        if part is None:
-            logger.warning("line at %.1f°: %s", c.azimuth_deg, why)
+    for k, c in enumerate(corridors):
+        done, why = [], []
+        for tile, (part, t, reason) in zip(tiles, results, strict=True):
+            if tile.line != k:
+                continue
+            for stage, seconds in t.items():
+                timings[stage] = timings.get(stage, 0.0) + seconds
+            if part is None:
+                why.append(reason)
+                if tile.views is not None:
+                    logger.warning("line at %.1f°, tile %d: %s", c.azimuth_deg, tile.index, reason)
+            else:
+                done.append(dataclasses.replace(part, pairs=[own(p) for p in part.pairs]))
+        if done:
+            parts.append(_joined_tiles(c, done, options))
+        elif k == 0:
+            raise InputError(why[0])
         else:
-            parts.append(dataclasses.replace(part, pairs=[own(p) for p in part.pairs]))
+            logger.warning("line at %.1f°: %s", c.azimuth_deg, why[0])
     return parts
 
 

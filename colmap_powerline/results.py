@@ -50,9 +50,17 @@ class ReconstructionOptions:
             "help": "flag the wire stretches that come closer than this to the ground (vertically)"
         },
     )
+    tile_footprints: float = field(
+        default=4.0,
+        metadata={
+            "help": "a line longer than this many image footprints (along the line, at the "
+            "wires' height) is reconstructed in tiles about this long, each a task that "
+            "reads only the images that see it"
+        },
+    )
     show_progress: bool = True  # progress bars on the loops over pairs and images (--quiet)
 
-    LIMITS: ClassVar[dict[str, str]] = {"min_clearance_m": ">= 0"}
+    LIMITS: ClassVar[dict[str, str]] = {"min_clearance_m": ">= 0", "tile_footprints": ">= 1"}
 
     def __post_init__(self) -> None:
         check_limits(self)

@@ -106,6 +106,7 @@ class SyntheticSpanOptions:
     background: Background = Background.VEGETATION
     flight: FlightPattern = FlightPattern.ACROSS
     span_m: float = 100.0  # horizontal distance between the towers
+    num_spans: int = 1  # layout "span": spans in a straight line (a corridor of towers)
     layout: Layout = Layout.SPAN
     turn_deg: float = 25.0  # layout "angle": the line's turn at the angle tower
     crossing_deg: float = 70.0  # layout "crossing": the pole line's angle to the span
@@ -146,6 +147,12 @@ class SyntheticSpanOptions:
         if self.layout is Layout.CROSSING and self.flight is not FlightPattern.GRID:
             raise InputError(
                 f"layout crossing is an area survey: flight {self.flight.value!r} but expected grid"
+            )
+        if not 1 <= self.num_spans <= 20:
+            raise InputError(f"{self.num_spans=} but expected 1 ≤ num_spans ≤ 20")
+        if self.num_spans > 1 and self.layout is not Layout.SPAN:
+            raise InputError(
+                f"{self.num_spans=} but layout {self.layout.value!r} has its own spans"
             )
         if not 0.0 < self.turn_deg <= 60.0:
             raise InputError(f"{self.turn_deg=} but expected 0 < turn_deg ≤ 60")
@@ -326,15 +333,24 @@ def _line_frame(opts: SyntheticSpanOptions) -> tuple[F64, F64]:
     return plan_axes(opts.line_azimuth_deg)
 
 
+def _line_half_length(opts: SyntheticSpanOptions) -> float:
+    """Half the straight line's length between its end towers (layout "span")."""
+    return opts.num_spans * opts.span_m / 2
+
+
 def _make_terrain(opts: SyntheticSpanOptions, rng: np.random.Generator) -> Terrain:
-    res, half = 1.0, 260.0
+    # A corridor of several spans gets ground to its ends, and its slope levels off beyond
+    # 150 m from the middle (a 3 % slope over a kilometre would bring the far end's wires
+    # 30 m nearer the drone, which flies at one height).
+    res, half = 1.0, max(260.0, _line_half_length(opts) + 160.0)
     n = int(2 * half / res) + 1
     along, _ = _line_frame(opts)
     x = -half + res * np.arange(n)
     gx, gy = np.meshgrid(x, x)
     s = gx * along[0] + gy * along[1]
     relief = fbm((n, n), rng, [70.0, 28.0, 9.0], [1.0, 0.45, 0.12])
-    z = 0.03 * s + 2.2 * relief
+    level = 150.0 if opts.num_spans > 1 else np.inf
+    z = 0.03 * np.clip(s, -level, level) + 2.2 * relief
     return Terrain(float(x[0]), float(x[0]), res, z.astype(np.float32))
 
 
@@ -432,7 +448,11 @@ def _make_towers_and_wires(
         ]
     else:
         _, along, across = legs[0]
-        sites = [(sign * opts.span_m / 2 * along, along, across, 1.0) for sign in (-1.0, 1.0)]
+        half = _line_half_length(opts)
+        sites = [
+            ((-half + k * opts.span_m) * along, along, across, 1.0)
+            for k in range(opts.num_spans + 1)
+        ]
     towers: list[list[Member]] = []
     attach: list[dict[tuple, tuple[float, float, float]]] = []
     supports: list[dict] = []
@@ -541,7 +561,7 @@ def _plan_strips(
     """
     spacing = (1 - opts.flight_side_overlap) * fp_across
     legs = _leg_frames(opts)
-    half_span = opts.span_m / 2
+    half_span = opts.span_m / 2 if opts.layout is Layout.ANGLE else _line_half_length(opts)
     if opts.flight is FlightPattern.CORRIDOR:
         return [(m, al, ac, half_span + 0.25 * fp_along, [-spacing, 0.0, spacing])
                 for m, al, ac in legs]  # fmt: skip
@@ -562,7 +582,7 @@ def _plan_strips(
         n_strips = int(np.ceil(2 * half_width / spacing)) + 1
         offsets = list((np.arange(n_strips) - (n_strips - 1) / 2) * spacing)
         return [(np.zeros(2), strip_dir, off_dir, half_length, offsets)]
-    n_strips = int(np.ceil((opts.span_m + 0.2 * fp_across) / spacing)) + 1
+    n_strips = int(np.ceil((2 * half_span + 0.2 * fp_across) / spacing)) + 1
     offsets = list((np.arange(n_strips) - (n_strips - 1) / 2) * spacing)
     return [(np.zeros(2), across, along, 0.6 * fp_along, offsets)]
 

@@ -55,21 +55,17 @@ def _run_one(image_path: str, input_path: str, out: str, workers: int, queue: mp
     )
 
 
-def main(argv: list[str] | None = None) -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--image_path", type=Path, required=True)
-    ap.add_argument("--input_path", type=Path, required=True)
-    ap.add_argument("--workers", type=int, nargs="+", default=[0, 2])
-    ap.add_argument("--work_path", type=Path, default=Path("benchmark_workers_out"))
-    ap.add_argument("--json", type=Path, help="write the rows here too")
-    args = ap.parse_args(argv)
+def measure(image_path: Path, input_path: Path, workers: list[int], work_path: Path) -> list[dict]:
+    """One run per number of workers, each in a fresh process (its peak memory its own):
+    a row per run with its times, memory, decodes, the decode floor and whether its outputs
+    are byte for byte those of the first run."""
     ctx = mp.get_context("spawn")
     rows = []
-    for w in args.workers:
-        out = args.work_path / f"workers_{w}"
+    for w in workers:
+        out = work_path / f"workers_{w}"
         queue = ctx.Queue()
         proc = ctx.Process(
-            target=_run_one, args=(str(args.image_path), str(args.input_path), str(out), w, queue)
+            target=_run_one, args=(str(image_path), str(input_path), str(out), w, queue)
         )
         proc.start()
         row = queue.get()
@@ -78,25 +74,38 @@ def main(argv: list[str] | None = None) -> None:
         rows.append(row)
     floor = decode_floor(Path(p) for p in rows[0]["unique"])
     first = Path(rows[0]["out"])
+    for r in rows:
+        r["decode_floor_s"] = floor
+        r["images_read"] = len(r.pop("unique"))
+        r["identical"] = all(
+            filecmp.cmp(first / name, Path(r["out"]) / name, shallow=False) for name in COMPARED
+        )
+    return rows
+
+
+def main(argv: list[str] | None = None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--image_path", type=Path, required=True)
+    ap.add_argument("--input_path", type=Path, required=True)
+    ap.add_argument("--workers", type=int, nargs="+", default=[0, 2])
+    ap.add_argument("--work_path", type=Path, default=Path("benchmark_workers_out"))
+    ap.add_argument("--json", type=Path, help="write the rows here too")
+    args = ap.parse_args(argv)
+    rows = measure(args.image_path, args.input_path, args.workers, args.work_path)
+    floor = rows[0]["decode_floor_s"]
     print(
-        f"{args.input_path}: {len(rows[0]['unique'])} images read, decode floor {floor:.1f} s "
+        f"{args.input_path}: {rows[0]['images_read']} images read, decode floor {floor:.1f} s "
         "(each image the run read, decoded once)"
     )
     for r in rows:
-        same = all(
-            filecmp.cmp(first / name, Path(r["out"]) / name, shallow=False) for name in COMPARED
-        )
         stages = ", ".join(f"{k} {v:.1f}" for k, v in r["timings_s"].items())
         print(
             f"workers {r['workers']}: {r['total_s']:.1f} s = {r['total_s'] / floor:.1f}x the "
             f"floor; peak RSS {r['peak_rss_mb']:.0f} MB (largest child "
             f"{r['peak_child_rss_mb']:.0f} MB); {r['wires']} wires, {r['decoded']} decodes; "
-            f"outputs {'identical to' if same else 'DIFFERENT from'} workers "
+            f"outputs {'identical to' if r['identical'] else 'DIFFERENT from'} workers "
             f"{rows[0]['workers']}\n    stages (s): {stages}"
         )
-        r["decode_floor_s"] = floor
-        r["identical"] = same
-        r.pop("unique")
     if args.json:
         args.json.write_text(json.dumps(rows, indent=1))
 

@@ -176,3 +176,102 @@ def test_an_interrupted_run_keeps_what_it_finished(small_span, tmp_path, monkeyp
     assert not (out / ".pieces").exists()
     images = {id(v) for v in result.scene.images}
     assert all(id(p.left) in images and id(p.right) in images for p in result.pairs)
+
+
+def _tiled(**changed):
+    """Options that cut the small span's line into tiles of about one image footprint."""
+    return ReconstructionOptions(
+        pairs=PairsOptions(wire_azimuth_deg=AZIMUTH, max_pairs=2),
+        tile_footprints=1.0,
+        show_progress=False,
+        **changed,
+    )
+
+
+def test_a_long_line_is_cut_into_tiles(small_scene):
+    """Tiles cover the line end to end, each core once; each tile reads only the images
+    that see its stretch; their number does not depend on the workers."""
+    from colmap_powerline.pipeline import footprint_along, line_tiles
+
+    options = _tiled()
+    corridor = probe_corridor(small_scene, options)
+    tiles = line_tiles(small_scene, corridor, 0, options)
+    assert len(tiles) >= 2
+    assert tiles[0].core[0] == -np.inf and tiles[-1].core[1] == np.inf
+    for a, b in zip(tiles, tiles[1:], strict=False):
+        assert a.core[1] == b.core[0]
+    footprint = footprint_along(small_scene, corridor)
+    names = {v.name for v in small_scene.images}
+    for t in tiles:
+        lo, hi = t.corridor.s_range
+        assert lo >= corridor.s_range[0] and hi <= corridor.s_range[1]
+        assert (
+            hi - lo <= (corridor.s_range[1] - corridor.s_range[0]) / len(tiles) + footprint + 1e-6
+        )
+        assert t.views and set(t.views) < names
+    assert len({t.name for t in tiles}) == len(tiles)
+    # The whole line is one tile at the default (the span is a few footprints long).
+    assert len(line_tiles(small_scene, corridor, 0, ReconstructionOptions())) == 1
+
+
+def test_tiles_on_dask_workers_are_the_same_as_here(small_scene):
+    """The tiles of a line as tasks: the same wires as in this process, the pieces of a
+    wire that a tile's end cut joined again."""
+    from colmap_powerline.pipeline import _reconstruct_corridors, line_tiles
+
+    options = _tiled()
+    corridor = probe_corridor(small_scene, options)
+    tiles = line_tiles(small_scene, corridor, 0, options)
+    (here,) = _reconstruct_corridors(small_scene, [corridor], options, {}, None)
+    with tasks_for(ExecutionOptions(workers=2)) as tasks:
+        (there,) = _reconstruct_corridors(small_scene, [corridor], options, {}, tasks)
+    assert len(here.wires) >= 4 and len(here.wires) == len(there.wires)
+    np.testing.assert_array_equal(here.verified.pts_in_world, there.verified.pts_in_world)
+    for a, b in zip(here.wires, there.wires, strict=True):
+        np.testing.assert_array_equal(a.point_indices, b.point_indices)
+    # A wire runs across the first tile's end: its pieces were joined into one.
+    cut = tiles[0].core[1]
+    along = [
+        (here.verified.pts_in_world[w.point_indices, :2] - corridor.centre_xy)
+        @ corridor.direction_xy
+        for w in here.wires
+    ]
+    assert any(s.min() < cut - 5 and s.max() > cut + 5 for s in along)
+
+
+def test_an_interrupted_tiled_run_redoes_only_the_tiles_it_had_not_finished(
+    small_span, tmp_path, monkeypatch
+):
+    """Ctrl-C in the second tile: the first is kept; started again, it is not redone."""
+    import colmap_powerline.pipeline as pipeline
+    from colmap_powerline.pipeline import reconstruct
+
+    out = tmp_path / "out"
+    real = pipeline.reconstruct_corridor
+    calls = []
+
+    def second_interrupted(*args, **kwargs):
+        calls.append(args[1].s_range)
+        if len(calls) == 2:
+            raise KeyboardInterrupt
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(pipeline, "reconstruct_corridor", second_interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        reconstruct(small_span.images, small_span.sparse, out, _tiled())
+    (kept,) = (out / ".pieces").iterdir()
+    names = sorted(p.name for p in kept.iterdir())
+    assert names[0] == "corridors.pkl" and len(names) == 2
+    assert names[1].startswith("line_0_tile_0_")
+    # Started again: the tile done is taken, only the others run.
+    calls.clear()
+
+    def counted(*args, **kwargs):
+        calls.append(args[1].s_range)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(pipeline, "reconstruct_corridor", counted)
+    result = reconstruct(small_span.images, small_span.sparse, out, _tiled())
+    n_tiles = len(pipeline.line_tiles(result.scene, result.corridors[0], 0, _tiled()))
+    assert len(calls) == n_tiles - 1
+    assert result.wires and not (out / ".pieces").exists()
