@@ -784,6 +784,7 @@ class _Tile:
 
     line: int
     index: int
+    of: int  # tiles of the line
     corridor: WireCorridor
     core: tuple[float, float]
     views: tuple[str, ...] | None
@@ -821,7 +822,7 @@ def line_tiles(
     footprint = footprint_along(scene, corridor)
     n = round((hi - lo) / (options.tile_footprints * footprint)) if np.isfinite(footprint) else 1
     if n <= 1:
-        return [_Tile(line, 0, corridor, (-np.inf, np.inf), None)]
+        return [_Tile(line, 0, 1, corridor, (-np.inf, np.inf), None)]
     edges = np.linspace(lo, hi, n + 1)
     # Half a footprint past each end: the pairs and views that see the core's ends.
     margin = 0.5 * footprint
@@ -835,7 +836,7 @@ def line_tiles(
             np.inf if t == n - 1 else float(edges[t + 1]),
         )
         views = tuple(v.name for v, s in zip(scene.images, seen, strict=True) if s)
-        tiles.append(_Tile(line, t, cut, core, views))
+        tiles.append(_Tile(line, t, n, cut, core, views))
     logger.info(
         "line at %.1f°: %.0f long, %d tiles of %.0f (%.1f footprints of %.0f), %d–%d images each",
         corridor.azimuth_deg,
@@ -868,7 +869,17 @@ def _tile_task(
         return None, timings, str(e)
     if tile.views is None:
         return part, timings, None
-    return _cut_to_core(part, tile, scene, here, options), timings, None
+    part = _cut_to_core(part, tile, scene, here, options)
+    logger.info(
+        "line at %.1f°, tile %d of %d: %d wires in its stretch, from %d images in %.0f s",
+        tile.corridor.azimuth_deg,
+        tile.index + 1,
+        tile.of,
+        len(part.wires),
+        len(here.images),
+        sum(timings.values()),
+    )
+    return part, timings, None
 
 
 def _cut_to_core(
