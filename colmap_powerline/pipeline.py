@@ -154,8 +154,24 @@ def _merged(parts: Sequence[CorridorResult], inlier_distance: float) -> Corridor
         n_pts += len(v)
         n_pairs += len(part.pairs)
         n_prims += int(sum(len(p) for p in part.primitives))
+    return _side_by_side(
+        first.corridor, parts, verified, wires, supports, legs, [p.corridor for p in parts]
+    )
+
+
+def _side_by_side(
+    corridor: WireCorridor,
+    parts: Sequence[CorridorResult],
+    verified: VerifiedPoints,
+    wires: list[FittedWire],
+    supports: list[WireSupport],
+    legs: list[int] | None = None,
+    corridors: list[WireCorridor] | None = None,
+) -> CorridorResult:
+    """Parts' results as one, given their points and wires put together: their pairs,
+    primitives and decoded images one after the other, their counts summed."""
     return CorridorResult(
-        first.corridor,
+        corridor,
         [p for part in parts for p in part.pairs],
         [p for part in parts for p in part.primitives],
         verified,
@@ -164,8 +180,8 @@ def _merged(parts: Sequence[CorridorResult], inlier_distance: float) -> Corridor
         [p for part in parts for p in part.decoded],
         sum(p.n_candidates for p in parts),
         sum(p.on_ground for p in parts),
-        legs,
-        [p.corridor for p in parts],
+        legs or [],
+        corridors or [],
     )
 
 
@@ -937,17 +953,7 @@ def _joined_tiles(
     wires, supports = _join_pieces(
         wires, supports, verified.pts_in_world, corridor.azimuth_deg, options.wires
     )
-    return CorridorResult(
-        corridor,
-        [p for part in parts for p in part.pairs],
-        [p for part in parts for p in part.primitives],
-        verified,
-        wires,
-        supports,
-        [p for part in parts for p in part.decoded],
-        sum(p.n_candidates for p in parts),
-        sum(p.on_ground for p in parts),
-    )
+    return _side_by_side(corridor, parts, verified, wires, supports)
 
 
 def _reconstruct_corridors(
