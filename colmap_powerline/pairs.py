@@ -440,6 +440,18 @@ def direction_candidates(
     )
 
 
+def footprint_along(scene: Scene, corridor: WireCorridor) -> float:
+    """Median length of the images' footprints along the corridor, at its lowest wires."""
+    z = corridor.height_range[0]
+    lengths = []
+    for v in scene.images:
+        corners = np.array([[0, 0], [v.width, 0], [v.width, v.height], [0, v.height]], float)
+        if np.any(v.rays_in_world(corners)[:, 2] >= 0):
+            continue  # an image looking at the horizon has no footprint
+        lengths.append(float(np.ptp(_to_plane(v, corners, z) @ corridor.direction_xy)))
+    return float(np.median(lengths)) if lengths else np.inf
+
+
 def _along_extent(scene: Scene, centre: F64, direction: F64, z: float, s_guess: F64) -> F64:
     """The stretch along the line (from ``centre``) that at least two images see at ``z``:
     looked for as far as the images reach (a probe measures a few pairs' stretch of a line

@@ -43,6 +43,7 @@ from .pairs import (
     WireCorridor,
     corridor_from_points,
     direction_candidates,
+    footprint_along,
     provisional_corridors,
     select_pairs,
 )
@@ -810,22 +811,6 @@ class _Tile:
         return (
             f"line_{self.line}_tile_{self.index}_{digest((self.corridor, self.core, self.views))}"
         )
-
-
-def footprint_along(scene: Scene, corridor: WireCorridor) -> float:
-    """Median length of the images' footprints along the corridor, at its lowest wires."""
-    z = corridor.height_range[0]
-    lengths = []
-    for v in scene.images:
-        w, h = v.width, v.height
-        corners = np.array([[0, 0], [w, 0], [w, h], [0, h]], np.float64)
-        rays, c = v.rays_in_world(corners), v.center_in_world
-        if np.any(rays[:, 2] >= 0):
-            continue  # an image looking at the horizon has no footprint
-        xy = c[:2] + ((z - c[2]) / rays[:, 2])[:, None] * rays[:, :2]
-        s = xy @ corridor.direction_xy
-        lengths.append(float(np.ptp(s)))
-    return float(np.median(lengths)) if lengths else np.inf
 
 
 def line_tiles(

@@ -17,11 +17,12 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 from pathlib import Path
 
 import numpy as np
-from benchmark_flights import score_package  # scripts/ is on the path when run as a script
+
+# scripts/ is on the path when run as a script
+from benchmark_flights import score_package, score_supports
 from benchmark_workers import measure
 
 
@@ -58,11 +59,7 @@ def score(scene: Path, out: Path) -> dict:
         d[t.kind].append(w["completeness"])
     towers = json.loads((scene / "truth" / "wires.json").read_text())["supports"]
     found = json.loads((out / "wires.json").read_text())["supports"]
-    right = 0
-    for t in towers:
-        d = [math.dist(f["position"][:2], t["base"][:2]) for f in found]
-        if d and min(d) <= 0.5 and abs(found[int(np.argmin(d))]["top_z"] - t["top_z"]) <= 1.0:
-            right += 1
+    supports = score_supports(found, towers)
     return {
         "spans": {
             s: {k: float(np.mean(v)) if v else None for k, v in d.items()}
@@ -75,9 +72,7 @@ def score(scene: Path, out: Path) -> dict:
         "median_m": r["median_m"],
         "outlier_share": r["outlier_share"],
         "ghosts": r["ghosts"],
-        "supports_true": len(towers),
-        "supports_found": len(found),
-        "supports_right": right,
+        **supports,
     }
 
 

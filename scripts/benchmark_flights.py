@@ -387,7 +387,10 @@ def score_shared(scene: Path, out: Path, shared_path: Path) -> dict[str, Any]:
             "span_min": min(v["completeness"] for v in spans),
             "spans_true": len(spans),
             "spans_found": len({(w.get("line"), w.get("span")) for w in fitted}),
-            **score_supports(doc.get("supports", []), scene),
+            **score_supports(
+                doc.get("supports", []),
+                json.loads((scene / "gt" / "wires.json").read_text())["scene"]["towers"],
+            ),
         }
     return {
         "wires": wires,
@@ -401,10 +404,12 @@ def score_shared(scene: Path, out: Path, shared_path: Path) -> dict[str, Any]:
     }
 
 
-def score_supports(found: Sequence[dict[str, Any]], scene: Path) -> dict[str, Any]:
-    """The true towers and poles matched by supports found: the nearest in plan, within
-    0.5 m in plan and 1 m in height (its highest attachment against the tower's top)."""
-    towers = json.loads((scene / "gt" / "wires.json").read_text())["scene"]["towers"]
+def score_supports(
+    found: Sequence[dict[str, Any]], towers: Sequence[dict[str, Any]]
+) -> dict[str, Any]:
+    """The true towers and poles (each with its ``base`` and ``top_z``) matched by supports
+    found: the nearest in plan, within 0.5 m in plan and 1 m in height (its highest
+    attachment against the tower's top)."""
     plan, height, ok = [], [], 0
     for t in towers:
         if not found:

@@ -191,7 +191,8 @@ def _tiled(**changed):
 def test_a_long_line_is_cut_into_tiles(small_scene):
     """Tiles cover the line end to end, each core once; each tile reads only the images
     that see its stretch; their number does not depend on the workers."""
-    from colmap_powerline.pipeline import footprint_along, line_tiles
+    from colmap_powerline.pairs import footprint_along
+    from colmap_powerline.pipeline import line_tiles
 
     options = _tiled()
     corridor = probe_corridor(small_scene, options)
