@@ -352,6 +352,11 @@ class DirectionCandidates:
 # the images that see it, 5th of the candidates).
 WIDE_PEAKS = 5
 WIDE_CANDIDATES = 2
+# When the wider look's first candidates have no line either, the probes go on down its
+# list, up to this many times ``max_candidates`` in all (shared grid seed 4 since the wider
+# look reads full resolution: roads' and field edges' directions rank first, the line's 70°
+# eleventh): an area survey's line is looked for before the run gives up on it.
+LOST_CANDIDATES = 4
 
 
 def direction_candidates(
@@ -366,7 +371,7 @@ def direction_candidates(
     the wires is decided in 3D (:func:`colmap_powerline.pipeline.probe_corridor`). A given
     ``wire_azimuth_deg`` is the only candidate. ``wide``: 1.5 √N images (6-24) instead of
     ``num_direction_images``, each direction ranked alike at every angle (see
-    :func:`_line_energy`), ``WIDE_PEAKS`` directions per image, ``WIDE_CANDIDATES`` times
+    :func:`_line_energy`), ``WIDE_PEAKS`` directions per image, ``LOST_CANDIDATES`` times
     ``max_candidates``. ``read``: images already analysed (``analysed`` of a first look),
     not decoded again.
     """
@@ -412,7 +417,7 @@ def direction_candidates(
         cands = []
         remaining = np.ones(len(az_arr), bool)
         tol = options.candidate_tolerance_deg
-        most = WIDE_CANDIDATES * options.max_candidates if wide else options.max_candidates
+        most = LOST_CANDIDATES * options.max_candidates if wide else options.max_candidates
         while remaining.any() and len(cands) < most:
             cand = _consensus_azimuth(
                 az_arr[remaining], w_arr[remaining], tolerance_deg=tol, min_share=0.0

@@ -379,11 +379,12 @@ def probe_corridors(
             # only measure that line again.
             tol = max(tol, options.pairs.line_tolerance_deg)
             probed.append(first.azimuth_deg)
-        fresh = [
+        ranked = [
             int(k)
             for k in np.argsort(wide.weights)[::-1]
             if all(axial_diff_deg(wide.azimuths_deg[k], a) >= tol for a in probed)
-        ][: (WIDE_CANDIDATES if lost else 1) * options.pairs.probe_candidates]
+        ]
+        fresh = ranked[: (WIDE_CANDIDATES if lost else 1) * options.pairs.probe_candidates]
         logger.info(
             "probe: %s; %d more from %d images ranked alike at every angle: %s",
             "no direction gave wires"
@@ -396,6 +397,22 @@ def probe_corridors(
         # Looking for more lines, the densest band of each direction is enough: a line's
         # wires pile up there (the wider band is for a main line a road outdoes).
         probe_all(wide, fresh, options.pairs.probe_bands if lost else 1)
+        # Still no line: on down the list, a few at a time, until one has a line's wires.
+        rest = ranked[len(fresh) :]
+        while lost and rest:
+            now = best()
+            if now is not None and now.num_wires >= MIN_LINE_WIRES:
+                break
+            batch, rest = (
+                rest[: options.pairs.probe_candidates],
+                rest[options.pairs.probe_candidates :],
+            )
+            logger.info(
+                "probe: still no line; %d more of the wider look's directions: %s",
+                len(batch),
+                [round(wide.azimuths_deg[k], 1) for k in batch],
+            )
+            probe_all(wide, batch, options.pairs.probe_bands)
     first = best()
     if first is None:
         azimuth = cands.azimuths_deg[int(np.argmax(cands.weights))]

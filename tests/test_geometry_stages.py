@@ -116,6 +116,49 @@ def test_the_direction_search_widens_when_no_direction_has_wires(small_scene, mo
     assert err < 2.0 and corridor.measured, corridor.azimuth_deg
 
 
+def test_the_probes_go_on_down_the_wider_look_until_a_line_is_found(
+    small_scene, monkeypatch, caplog
+):
+    """An area survey's line is seen by a few of the images read, where roads and field
+    edges outrank it (shared grid seed 4: its direction eleventh): when the wider look's
+    first candidates have no line either, the probes go on down its list."""
+    import colmap_powerline.pipeline as pipeline
+    from colmap_powerline.pairs import DirectionCandidates
+
+    real_dirs, real_probe = pipeline.direction_candidates, pipeline._probe
+
+    def lines_elsewhere(scene, options, wide=False, read=()):
+        if not wide:
+            across = dataclasses.replace(options, wire_azimuth_deg=(AZIMUTH + 90.0) % 180.0)
+            return real_dirs(scene, across)
+        # Eleven stronger directions (none within 8° of the line's), then the line's.
+        found = real_dirs(scene, dataclasses.replace(options, wire_azimuth_deg=AZIMUTH))
+        others = [(AZIMUTH + 10.0 + 7.0 * k) % 180.0 for k in range(11)]
+        return DirectionCandidates(
+            tuple(others) + (AZIMUTH,),
+            tuple(float(20 - k) for k in range(11)) + (1.0,),
+            found.analysed,
+            found.ground_z,
+            found.flying_height,
+        )
+
+    probed = []
+
+    def probe(prov, scene, options):
+        probed.append(prov.azimuth_deg)
+        if abs((prov.azimuth_deg - AZIMUTH + 90) % 180 - 90) > 2.0:
+            return None, []  # no wires in that direction (and fast)
+        return real_probe(prov, scene, options)
+
+    monkeypatch.setattr(pipeline, "direction_candidates", lines_elsewhere)
+    monkeypatch.setattr(pipeline, "_probe", probe)
+    with caplog.at_level("INFO", logger="colmap_powerline.pipeline"):
+        corridor = probe_corridor(small_scene, ReconstructionOptions(show_progress=False))
+    assert any("still no line" in r.getMessage() for r in caplog.records)
+    err = abs((corridor.azimuth_deg - AZIMUTH + 90) % 180 - 90)
+    assert err < 2.0 and corridor.measured, corridor.azimuth_deg
+
+
 def test_corridor_with_given_direction_is_measured(corridor):
     assert corridor.azimuth_deg == AZIMUTH and not corridor.from_images and corridor.measured
     samples = corridor.sample_points(1.0)
