@@ -307,6 +307,11 @@ def _probe(
     return _Probe(length, len(wires), prov, verified.pts_in_world[idx], measured), decoded
 
 
+def _has_line(probe: _Probe | None) -> bool:
+    """Did a probe measure a line's wires (a line carries at least ``MIN_LINE_WIRES``)?"""
+    return probe is not None and probe.num_wires >= MIN_LINE_WIRES
+
+
 def probe_corridor(scene: Scene, options: ReconstructionOptions) -> WireCorridor:
     """The main line's corridor: the first of :func:`probe_corridors`."""
     return probe_corridors(scene, options)[0]
@@ -369,7 +374,7 @@ def probe_corridors(
         # wire, where a line carries at least two: an area survey whose line a few of its
         # images see, at an angle to its strips; shared grid seed 3: 0 of 6 probes), this
         # is the run's last chance to find it: up to twice as many.
-        lost = first is None or first.num_wires < MIN_LINE_WIRES
+        lost = not _has_line(first)
         wide = direction_candidates(scene, options.pairs, wide=True, read=cands.analysed)
         decoded += list(wide.decoded)  # at full resolution: the first look's images again
         tol = options.pairs.candidate_tolerance_deg
@@ -398,15 +403,11 @@ def probe_corridors(
         # wires pile up there (the wider band is for a main line a road outdoes).
         probe_all(wide, fresh, options.pairs.probe_bands if lost else 1)
         # Still no line: on down the list, a few at a time, until one has a line's wires.
-        rest = ranked[len(fresh) :]
-        while lost and rest:
-            now = best()
-            if now is not None and now.num_wires >= MIN_LINE_WIRES:
+        step = options.pairs.probe_candidates
+        for at in range(len(fresh), len(ranked) if lost else 0, step):
+            if _has_line(best()):
                 break
-            batch, rest = (
-                rest[: options.pairs.probe_candidates],
-                rest[options.pairs.probe_candidates :],
-            )
+            batch = ranked[at : at + step]
             logger.info(
                 "probe: still no line; %d more of the wider look's directions: %s",
                 len(batch),

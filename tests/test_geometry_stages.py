@@ -142,10 +142,7 @@ def test_the_probes_go_on_down_the_wider_look_until_a_line_is_found(
             found.flying_height,
         )
 
-    probed = []
-
     def probe(prov, scene, options):
-        probed.append(prov.azimuth_deg)
         if abs((prov.azimuth_deg - AZIMUTH + 90) % 180 - 90) > 2.0:
             return None, []  # no wires in that direction (and fast)
         return real_probe(prov, scene, options)
