@@ -624,3 +624,18 @@ def test_a_half_pixel_line_keeps_its_direction_sampled_along_it_not_shrunk_acros
     small = cv2.resize(image, (640, 480), interpolation=cv2.INTER_AREA)
     shrunk = _image_directions(small, PairsOptions(), 5, True)
     assert all(abs(a - 131.0) > 1.5 or c < 1.1 for a, c in shrunk), shrunk
+
+
+def test_a_line_one_image_shows_plainly_outranks_many_images_texture_peaks():
+    # Twelve images' peaks at the texture's level (2-8 % over their median direction)
+    # around 30 deg, and one image that sees the line at 70 deg plainly (twice its median):
+    # what a direction's lines add to their images, not how many images name it, ranks it.
+    rng = np.random.default_rng(0)
+    texture = np.c_[30.0 + rng.uniform(-1.0, 1.0, 12), rng.uniform(1.02, 1.08, 12)]
+    others = np.c_[rng.uniform(100.0, 170.0, 12), rng.uniform(1.0, 1.05, 12)]
+    peaks = np.r_[texture, others, [[70.0, 2.0], [69.0, 1.02]]]
+    cands = pairs_module._ranked_directions(peaks[:, 0], peaks[:, 1], 2.5, 5)
+    assert abs(cands[0][0] - 70.0) < 1.0
+    assert abs(cands[1][0] - 30.0) < 1.5
+    # The line's azimuth: its peaks' mean weighted by their contrast.
+    assert cands[0][0] == pytest.approx((70.0 * 2.0 + 69.0 * 1.02) / 3.02)
