@@ -509,6 +509,28 @@ def _held(pts: F64, idx: I64, along: F64, options: WiresOptions) -> FittedWire |
     return fit if 2 * len(fit.point_indices) >= len(idx) else None
 
 
+def _past_supports(
+    s: F64, own: F64, supports: list[float], options: WiresOptions
+) -> npt.NDArray[np.bool_]:
+    """Which of the places ``s`` (along the line) lie past a support at which a wire whose
+    points lie at ``own`` ends (within ``min_length``) and past its own points: the next
+    span's. A few stray points
+    near its curve continued would otherwise carry its end tens of metres into that span."""
+    past = np.zeros(len(s), bool)
+    if len(own) == 0:
+        return past
+    lo, hi = float(own.min()), float(own.max())
+    for b in supports:
+        if lo + options.min_length < b < hi - options.min_length:
+            continue  # it runs through this one (a chain one curve holds)
+        # Never past its own points: the support's place is known to a metre or so.
+        if b >= hi - options.min_length:
+            past |= s > max(b, hi)
+        if b <= lo + options.min_length:
+            past |= s < min(b, lo)
+    return past
+
+
 def _chain_curves(
     pts: F64, idx: I64, along: F64, options: WiresOptions, supports: list[float]
 ) -> list[FittedWire]:
@@ -731,12 +753,15 @@ def split_wires(
     wires: list[FittedWire] = []
     if merged:
         dist = np.stack([w.distance(pts) for w in merged])  # (K, N)
+        s_line = pts[:, :2] @ along
         for k, w in enumerate(merged):
             s_w = w.plane_coords(pts)[0]
             outside = (s_w < w.s_range[0] - 2 * options.max_gap) | (
                 s_w > w.s_range[1] + 2 * options.max_gap
             )
-            dist[k, outside] = np.inf
+            dist[k, outside | _past_supports(s_line, s_line[w.point_indices], supports, options)] = (
+                np.inf
+            )
         best = np.argmin(dist, axis=0)
         close = dist[best, np.arange(len(pts))] < options.inlier_distance
         for k in range(len(merged)):
