@@ -209,6 +209,31 @@ def test_a_straight_line_s_conductors_are_split_into_one_wire_per_span():
         assert w.rms_residual < 0.04
 
 
+def test_a_span_s_wire_takes_no_stray_points_past_the_support_it_ends_at():
+    # As above, and a few stray points (false matches) lie on span 1's curves continued
+    # 20 m into span 2, 2 m apart: too few for a wire, close enough to the continued curve
+    # to be taken as its points, which would carry the wire's end into span 2 (shared
+    # multispan seed 3: span 1's L2 ran 23 m on, and the views then rejected it).
+    rng = np.random.default_rng(6)
+    towers, _ = _towers(0.0)
+    parts = []
+    for c, z in PHASES:
+        for k in range(4):
+            a, b = np.r_[towers[k] + (0.0, -c), z], np.r_[towers[k + 1] + (0.0, -c), z]
+            parts.append(_span_points(a, b, 900.0, rng, keep=(0.3, 0.3)))
+            if k == 0:
+                run_on = _span_points(a, b, 900.0, rng, keep=(0.3, -20.0))
+                parts.append(run_on[run_on[:, 0] > b[0] + 0.5][::40])
+    pts = np.concatenate(parts)
+    wires = split_wires(pts, 90.0)
+    assert len(wires) == 16
+    for w in wires:
+        x = pts[w.point_indices, 0]
+        k = int(np.floor((np.median(x) + 180.0) / 90.0))
+        assert towers[k][0] - 1.0 <= x.min() and x.max() <= towers[k + 1][0] + 1.0
+        assert np.ptp(x) > 85.0
+
+
 def test_pieces_meeting_where_the_next_span_s_wires_run_through_are_no_support(caplog):
     # A straight line of four spans, every conductor measured span by span; the upper two
     # conductors' wires of spans 1 and 3 carry a tail of stray points 17-27 m into span 2
