@@ -759,9 +759,8 @@ def split_wires(
             outside = (s_w < w.s_range[0] - 2 * options.max_gap) | (
                 s_w > w.s_range[1] + 2 * options.max_gap
             )
-            dist[k, outside | _past_supports(s_line, s_line[w.point_indices], supports, options)] = (
-                np.inf
-            )
+            outside |= _past_supports(s_line, s_line[w.point_indices], supports, options)
+            dist[k, outside] = np.inf
         best = np.argmin(dist, axis=0)
         close = dist[best, np.arange(len(pts))] < options.inlier_distance
         for k in range(len(merged)):
