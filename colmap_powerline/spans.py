@@ -45,7 +45,7 @@ from .geometry import across_of, axial_diff_deg, positions_across
 from .options import check_limits
 from .pairs import WireCorridor
 from .scene import read_image
-from .wires import FittedWire, WiresOptions, refit
+from .wires import FittedWire, WiresOptions, parabola_split_rss, refit
 
 logger = logging.getLogger(__name__)
 
@@ -223,27 +223,6 @@ class _Leg:
         return float(u.min()), float(u.max())
 
 
-def _parabola_rss(s: F64, z: F64) -> tuple[F64, F64]:
-    """For every split k of the sorted samples: the residual sums of squares of the best
-    parabolas through ``[:k]`` and ``[k:]`` (cumulative moments: all splits at once)."""
-    m = np.stack([s**j for j in range(5)])  # (5, N)
-    t = np.stack([z * s**j for j in range(3)])
-    zz = z**2
-
-    def sides(mom: F64, tz: F64, z2: F64) -> F64:
-        a = np.stack([np.stack([mom[i + j] for j in range(3)], -1) for i in range(3)], -2)
-        a = a + 1e-9 * np.eye(3)
-        beta = np.linalg.solve(a, tz.T[..., None])[..., 0]
-        return np.maximum(z2 - np.sum(beta * tz.T, axis=1), 0.0)
-
-    cm = np.concatenate([np.zeros((5, 1)), np.cumsum(m, axis=1)], axis=1)
-    ct = np.concatenate([np.zeros((3, 1)), np.cumsum(t, axis=1)], axis=1)
-    cz = np.r_[0.0, np.cumsum(zz)]
-    left = sides(cm, ct, cz)
-    right = sides(cm[:, -1:] - cm, ct[:, -1:] - ct, cz[-1] - cz)
-    return left, right
-
-
 def _kink_between(left: F64, right: F64, lo: float, hi: float) -> tuple[float, float] | None:
     """Where two parabolas (left and right of a support) cross between ``lo`` and ``hi``,
     and the bend there in degrees (positive: downward, as a support makes)."""
@@ -274,7 +253,7 @@ def find_kink(wire: FittedWire, pts_in_world: F64, options: SpanOptions) -> floa
         return None
     centre, scale = 0.5 * (s[0] + s[-1]), 0.5 * (s[-1] - s[0])
     x = (s - centre) / scale
-    left, right = _parabola_rss(x, z)
+    left, right = parabola_split_rss(x, z)
     k = np.arange(len(s) + 1)
     ok = (k >= 10) & (k <= len(s) - 10)
     ok[10 : len(s) - 9] &= (s[9 : len(s) - 10] - s[0] >= options.min_piece_m) & (
@@ -611,6 +590,7 @@ def find_spans(
     cands = _kinks(work, wires, legs, axes, pts_in_world, options, wires_options)
     cands += _meetings(work, axes, options, max_across)
     found = _clustered(cands, len(axes), options)
+    found = _not_run_through(found, work, axes, pts_in_world, options, wires_options)
     # 3. Wires ending together where the images see past them: the line ends there.
     found += _line_ends(views, work, axes, found, options, crossing_offset)
     # 4. Every wire cut at each support of its leg that it runs across.
@@ -699,6 +679,49 @@ def _clustered(cands: list[_Candidate], n_legs: int, options: SpanOptions) -> li
                 )
             )
     return found
+
+
+def _not_run_through(
+    found: list[_Found],
+    work: _Work,
+    axes: list[_Leg],
+    pts_in_world: F64,
+    options: SpanOptions,
+    wires_options: WiresOptions,
+) -> list[_Found]:
+    """The supports found, but those only pieces meeting placed (their curves continued
+    across a gap) where more wires of the leg run through without a kink than conductors
+    meet there. A wire runs through where it holds ``min_points`` on either side between
+    one and three ``support_radius`` away (nearer, the next span's conductor converges on
+    the same attachment). On a straight line the next span's wires are measured through
+    such a place, and two pieces' curves, each carried past its own support by a few stray
+    points, met between them."""
+    r = options.support_radius
+    out = []
+    for li, u, how, ids in found:
+        if how == "pieces meeting":
+            leg = axes[li]
+            through = []
+            for k in work.on_leg(li):
+                w = work.wires[k]
+                if w.wire_id in ids:
+                    continue
+                d = leg.u(pts_in_world[w.point_indices, :2]) - u
+                before = np.count_nonzero((d > -3 * r) & (d < -r))
+                after = np.count_nonzero((d > r) & (d < 3 * r))
+                if min(before, after) >= wires_options.min_points:
+                    through.append(w.wire_id)
+            if len(through) > len(ids) // 2:
+                logger.info(
+                    "spans: no support at %.1f along its line: %d pieces' curves meet there, "
+                    "but wires %s are measured through it without a bend",
+                    u,
+                    len(ids),
+                    sorted(through),
+                )
+                continue
+        out.append((li, u, how, ids))
+    return out
 
 
 def _line_ends(
@@ -797,7 +820,20 @@ def _cut_at_supports(
                     out[k], leg.s_of(out[k], u), pts_in_world, leg, wires_options, work.next_id
                 )
                 if cut is None:
-                    continue
+                    # One side holds too few points for a wire of its own: a tail the curve
+                    # took past the support (a few stray points on it continued).
+                    kept = _trimmed(out[k], leg.s_of(out[k], u), pts_in_world, leg, wires_options)
+                    if kept is None:
+                        continue
+                    logger.info(
+                        "spans: wire %d has a tail past the support at %.1f along its line: "
+                        "the tail left out",
+                        out[k].wire_id,
+                        u,
+                    )
+                    out[k] = kept
+                    changed = True
+                    break
                 work.next_id += 1
                 meet = _meeting(cut[0], cut[1], leg, u, options, max_across)
                 keep = list(cut)
@@ -1161,6 +1197,26 @@ def _cut(
     if a is wire or b is wire:
         return None
     return a, dataclasses.replace(b, wire_id=new_id)
+
+
+def _trimmed(
+    wire: FittedWire, s_cut: float, pts_in_world: F64, leg: _Leg, options: WiresOptions
+) -> FittedWire | None:
+    """``wire`` refitted to its points on the side of ``s_cut`` that holds most of them, when
+    that side holds a wire and the other does not (fewer than ``min_points``, or no curve
+    fits them); else None."""
+    s, _, _ = wire.plane_coords(pts_in_world[wire.point_indices])
+    left, right = wire.point_indices[s < s_cut], wire.point_indices[s >= s_cut]
+    main, rest = (left, right) if len(left) >= len(right) else (right, left)
+    if len(main) < options.min_points:
+        return None
+    if (
+        len(rest) >= options.min_points
+        and refit(wire, pts_in_world, rest, leg.direction, options) is not wire
+    ):
+        return None
+    kept = refit(wire, pts_in_world, main, leg.direction, options)
+    return None if kept is wire else kept
 
 
 def _conductors(

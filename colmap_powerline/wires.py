@@ -363,15 +363,8 @@ def merge_pieces(
                     a, b, pts_in_world, options
                 ):
                     continue
-                idx = np.r_[a.point_indices, b.point_indices]
-                fit = _fit(pts_in_world, idx, along, options)
-                if fit is None or fit.rms_residual > options.max_rms:
-                    continue
-                # Each piece must lie on it (a short piece beside a long wire is a small
-                # share of their points, so the share of all of them would not tell).
-                inlier = np.isin(idx, fit.point_indices)
-                n_a = len(a.point_indices)
-                if min(inlier[:n_a].mean(), inlier[n_a:].mean()) < MERGE_INLIER_SHARE:
+                fit = _joint_fit(a, b, pts_in_world, along, options)
+                if fit is None:
                     continue
                 # The joined wire is new: its pairs are tried again.
                 apart = {p for p in apart if a.wire_id not in p}
@@ -387,6 +380,178 @@ def merge_pieces(
         while joined[k] in joined:
             joined[k] = joined[joined[k]]
     return out, joined
+
+
+def _across_support(
+    a: FittedWire, b: FittedWire, pts_in_world: F64, along: F64, options: WiresOptions
+) -> bool:
+    """Do two pieces, each a support window long or more (a span's wire, not a support's
+    member or a few metres by an insulator), meet at a support (:func:`_support_places`
+    of their points together: the next span's conductor of a straight line)?"""
+    window = SUPPORT_WINDOW_LENGTHS * options.min_length
+    if min(np.ptp(a.s_range), np.ptp(b.s_range)) < window:
+        return False
+    idx = np.r_[a.point_indices, b.point_indices]
+    return bool(_support_places(pts_in_world, idx, along, options))
+
+
+def _joint_fit(
+    a: FittedWire, b: FittedWire, pts_in_world: F64, along: F64, options: WiresOptions
+) -> FittedWire | None:
+    """One curve through the points of two pieces, when it keeps ``MERGE_INLIER_SHARE`` of
+    each piece's points (a short piece beside a long wire is a small share of their points,
+    so the share of all of them would not tell) and they meet at no support
+    (:func:`_across_support`); else None."""
+    idx = np.r_[a.point_indices, b.point_indices]
+    fit = _fit(pts_in_world, idx, along, options)
+    if fit is None or fit.rms_residual > options.max_rms:
+        return None
+    if _across_support(a, b, pts_in_world, along, options):
+        return None
+    inlier = np.isin(idx, fit.point_indices)
+    n_a = len(a.point_indices)
+    if min(inlier[:n_a].mean(), inlier[n_a:].mean()) < MERGE_INLIER_SHARE:
+        return None
+    return fit
+
+
+def parabola_split_rss(s: F64, z: F64) -> tuple[F64, F64]:
+    """For every split k of the sorted samples: the residual sums of squares of the best
+    parabolas through ``[:k]`` and ``[k:]`` (cumulative moments: all splits at once)."""
+    m = np.stack([s**j for j in range(5)])  # (5, N)
+    t = np.stack([z * s**j for j in range(3)])
+    zz = z**2
+
+    def sides(mom: F64, tz: F64, z2: F64) -> F64:
+        a = np.stack([np.stack([mom[i + j] for j in range(3)], -1) for i in range(3)], -2)
+        a = a + 1e-9 * np.eye(3)
+        beta = np.linalg.solve(a, tz.T[..., None])[..., 0]
+        return np.maximum(z2 - np.sum(beta * tz.T, axis=1), 0.0)
+
+    cm = np.concatenate([np.zeros((5, 1)), np.cumsum(m, axis=1)], axis=1)
+    ct = np.concatenate([np.zeros((3, 1)), np.cumsum(t, axis=1)], axis=1)
+    cz = np.r_[0.0, np.cumsum(zz)]
+    left = sides(cm, ct, cz)
+    right = sides(cm[:, -1:] - cm, ct[:, -1:] - ct, cz[-1] - cz)
+    return left, right
+
+
+# A wire bends down where a support holds it by the sum of its two curves' slopes there
+# (about 4 sag / span each side: 10 degrees for a 100 m span sagging 2.5 m); a chain is cut
+# where two curves fit it far better than one and bend down by at least this.
+SUPPORT_MIN_BEND_DEG = 2.0
+# ... and the two curves' residual sum of squares is at most this share of one curve's
+# (one curve through a support misses by decimetres, two fit to the noise).
+SUPPORT_MAX_RSS_SHARE = 0.25
+# The curves either side are fitted over this many ``min_length`` (20 m at the defaults:
+# less than a span, so that one side holds no other support).
+SUPPORT_WINDOW_LENGTHS = 4
+MAX_SPLIT_SAMPLES = 4000
+
+
+def _support_places(pts: F64, idx: I64, along: F64, options: WiresOptions) -> list[float]:
+    """Where supports hold the chain ``idx`` (along ``along``): places where two parabolas
+    in height, each over ``SUPPORT_WINDOW_LENGTHS`` × ``min_length`` of the chain on its
+    side, fit far better than one (``SUPPORT_MAX_RSS_SHARE``) and meet bending down
+    (``SUPPORT_MIN_BEND_DEG``); the best such place within a window of another wins.
+
+    A straight line's conductors run on from span to span: the voxel chains join a span's
+    wire to the next one's at their support, and one curve then holds none of them."""
+    s = pts[idx, :2] @ along
+    order = np.argsort(s, kind="stable")
+    s_o, z_o = s[order], pts[idx[order], 2]
+    if len(s_o) > MAX_SPLIT_SAMPLES:
+        keep = np.linspace(0, len(s_o) - 1, MAX_SPLIT_SAMPLES).astype(np.int64)
+        s_o, z_o = s_o[keep], z_o[keep]
+    window = SUPPORT_WINDOW_LENGTHS * options.min_length
+    if len(s_o) < 2 * options.min_points or s_o[-1] - s_o[0] < 2 * options.min_length:
+        return []
+    found: list[tuple[float, float]] = []  # (RSS share, place)
+    for b in np.arange(s_o[0] + options.min_length, s_o[-1] - options.min_length, 1.0):
+        lo, mid, hi = np.searchsorted(s_o, [b - window, b, b + window])
+        if min(mid - lo, hi - mid) < options.min_points:
+            continue
+        x, z = s_o[lo:hi] - b, z_o[lo:hi]
+        k = mid - lo
+        if x[k - 1] - x[0] < options.min_length or x[-1] - x[k] < options.min_length:
+            continue
+        pl, rl = np.polyfit(x[:k], z[:k], 2, full=True)[:2]
+        pr, rr = np.polyfit(x[k:], z[k:], 2, full=True)[:2]
+        one = np.polyfit(x, z, 2, full=True)[1]
+        both = float(rl[0] if len(rl) else 0.0) + float(rr[0] if len(rr) else 0.0)
+        share = both / float(one[0]) if len(one) and one[0] > 0 else 1.0
+        bend = np.degrees(np.arctan(pl[1]) - np.arctan(pr[1]))  # slopes at b (x = 0)
+        if share <= SUPPORT_MAX_RSS_SHARE and bend >= SUPPORT_MIN_BEND_DEG:
+            found.append((share, float(b)))
+    cuts: list[float] = []
+    for _, b in sorted(found):
+        if all(abs(b - c) >= window for c in cuts):
+            cuts.append(b)
+    return sorted(cuts)
+
+
+def _supports_of_line(places: list[float], options: WiresOptions) -> list[float]:
+    """The line's supports from the places its chains bend at (:func:`_support_places`):
+    one per cluster of places within ``min_length`` of one another (a support holds all
+    its conductors at one place along the line)."""
+    if not places:
+        return []
+    p = np.sort(np.asarray(places, np.float64))
+    groups = np.split(p, np.flatnonzero(np.diff(p) > options.min_length) + 1)
+    return [float(np.median(g)) for g in groups]
+
+
+def _held(pts: F64, idx: I64, along: F64, options: WiresOptions) -> FittedWire | None:
+    """The one curve of a chain, when it holds most of the chain's points."""
+    fit = _fit(pts, idx, along, options)
+    if fit is None or fit.rms_residual > options.max_rms:
+        return None
+    return fit if 2 * len(fit.point_indices) >= len(idx) else None
+
+
+def _past_supports(
+    s: F64, own: F64, supports: list[float], options: WiresOptions
+) -> npt.NDArray[np.bool_]:
+    """Which of the places ``s`` (along the line) lie past a support at which a wire whose
+    points lie at ``own`` ends (within ``min_length``) and past its own points: the next
+    span's. A few stray points
+    near its curve continued would otherwise carry its end tens of metres into that span."""
+    past = np.zeros(len(s), bool)
+    if len(own) == 0:
+        return past
+    lo, hi = float(own.min()), float(own.max())
+    for b in supports:
+        if lo + options.min_length < b < hi - options.min_length:
+            continue  # it runs through this one (a chain one curve holds)
+        # Never past its own points: the support's place is known to a metre or so.
+        if b >= hi - options.min_length:
+            past |= s > max(b, hi)
+        if b <= lo + options.min_length:
+            past |= s < min(b, lo)
+    return past
+
+
+def _chain_curves(
+    pts: F64, idx: I64, along: F64, options: WiresOptions, supports: list[float]
+) -> list[FittedWire]:
+    """The curves of one voxel chain that one curve does not hold: where it runs through
+    the line's ``supports`` (:func:`_supports_of_line`), the curves of each piece between
+    them; each piece one curve holds gives it, any other its layers (:func:`_layers`)."""
+    s = pts[idx, :2] @ along
+    inside = [
+        b for b in supports if s.min() + options.min_length < b < s.max() - options.min_length
+    ]
+    side = np.searchsorted(inside, s)
+    out: list[FittedWire] = []
+    for j in range(len(inside) + 1):
+        piece = idx[side == j]
+        if len(piece) < options.min_points:
+            continue
+        fit = _held(pts, piece, along, options) if inside else None
+        # One curve does not hold most of it: it holds several (a wire and a false pairing
+        # 1 m above it all along, joined by the points between).
+        out += [fit] if fit is not None else _layers(pts, piece, along, options)
+    return out
 
 
 def _layers(pts: F64, idx: I64, along: F64, options: WiresOptions) -> list[FittedWire]:
@@ -489,9 +654,10 @@ def split_wires(
 ) -> list[FittedWire]:
     """Split verified points into individual wires and fit each.
 
-    A chain of points that one curve does not hold (it keeps less than half of them) gives
-    its curves layer by layer (:func:`_layers`), or, without ``layers``, the one curve only
-    when that fits.
+    A chain of points that one curve does not hold (it keeps less than half of them) is cut
+    at the line's supports (:func:`_support_places`: a straight line's conductors run on
+    from span to span), and otherwise gives its curves layer by layer (:func:`_layers`);
+    without ``layers``, the one curve only when that fits.
 
     Args:
         pts_in_world: (N, 3) verified wire points.
@@ -532,18 +698,26 @@ def split_wires(
     order = np.argsort(comp, kind="stable")
     bounds = np.searchsorted(comp[order], np.arange(n_comp + 1))
     pieces: list[FittedWire] = []
+    unheld: list[I64] = []
     for k in range(n_comp):
         idx = order[bounds[k] : bounds[k + 1]]
         if len(idx) < options.min_points:
             continue
         fit = _fit(pts, idx, along, options)
         fits = fit if fit is not None and fit.rms_residual <= options.max_rms else None
-        if layers and (fits is None or 2 * len(fits.point_indices) < len(idx)):
-            # One curve does not hold most of the chain: it holds several (a wire and a
-            # false pairing 1 m above it all along, joined by the points between).
-            pieces += _layers(pts, idx, along, options)
-        elif fits is not None:
+        if fits is not None and (not layers or 2 * len(fits.point_indices) >= len(idx)):
             pieces.append(fits)
+        elif layers:
+            unheld.append(idx)
+    # A chain one curve does not hold runs through the line's supports (a straight line's
+    # conductors run on from span to span: the chains join one span's wire to the next's),
+    # or holds several curves. The supports are where the chains bend, all of them together:
+    # a chain of several layers does not show its own bend.
+    supports = _supports_of_line(
+        [b for idx in unheld for b in _support_places(pts, idx, along, options)], options
+    )
+    for idx in unheld:
+        pieces += _chain_curves(pts, idx, along, options, supports)
 
     # Merge pieces of the same wire (gaps, duplicates from several pairs), then refit.
     n = len(pieces)
@@ -557,7 +731,13 @@ def split_wires(
 
     for i in range(n):
         for j in range(i + 1, n):
-            if root(i) != root(j) and _same_wire(pieces[i], pieces[j], options):
+            # Close where they meet, and not at a support: a span's conductor meets the
+            # next span's at their support, where no curve continues.
+            if (
+                root(i) != root(j)
+                and _same_wire(pieces[i], pieces[j], options)
+                and not _across_support(pieces[i], pieces[j], pts, along, options)
+            ):
                 parent[root(j)] = root(i)
     groups: dict[int, list[int]] = {}
     for i in range(n):
@@ -573,11 +753,13 @@ def split_wires(
     wires: list[FittedWire] = []
     if merged:
         dist = np.stack([w.distance(pts) for w in merged])  # (K, N)
+        s_line = pts[:, :2] @ along
         for k, w in enumerate(merged):
             s_w = w.plane_coords(pts)[0]
             outside = (s_w < w.s_range[0] - 2 * options.max_gap) | (
                 s_w > w.s_range[1] + 2 * options.max_gap
             )
+            outside |= _past_supports(s_line, s_line[w.point_indices], supports, options)
             dist[k, outside] = np.inf
         best = np.argmin(dist, axis=0)
         close = dist[best, np.arange(len(pts))] < options.inlier_distance

@@ -9,7 +9,7 @@ import pytest
 
 from colmap_powerline.pairs import WireCorridor
 from colmap_powerline.spans import LineSupport, SpanOptions, find_kink, find_spans
-from colmap_powerline.wires import FittedWire, WiresOptions, refit
+from colmap_powerline.wires import FittedWire, WiresOptions, refit, split_wires
 
 
 class _Sees:
@@ -176,6 +176,103 @@ def test_supports_spans_and_conductors_of_a_line(turn_deg):
         by_conductor.setdefault(p.conductor, []).append(p.span)
     assert len(by_conductor) == 4
     assert all(sorted(v) == [1, 2, 3, 4] for v in by_conductor.values())
+
+
+def test_a_straight_line_s_conductors_are_split_into_one_wire_per_span():
+    # Measured to within half a metre of the attachments, one conductor's spans of a
+    # straight line touch at each support: the voxel chains join them, and one curve holds
+    # none of that chain. Each span's wire is its own.
+    rng = np.random.default_rng(4)
+    towers, _ = _towers(0.0)
+    pts = np.concatenate(
+        [
+            _span_points(
+                np.r_[towers[k] + (0.0, -c), z],
+                np.r_[towers[k + 1] + (0.0, -c), z],
+                900.0,
+                rng,
+                keep=(0.3, 0.3),
+            )  # fmt: skip
+            for c, z in PHASES
+            for k in range(4)
+        ]
+    )
+    wires = split_wires(pts, 90.0)  # the line along +x
+    assert len(wires) == 16
+    for w in wires:
+        # Its points within one span (between two neighbouring towers), along most of it.
+        x = pts[w.point_indices, 0]
+        k = int(np.floor((np.median(x) + 180.0) / 90.0))
+        inside = (x >= towers[k][0] - 1.0) & (x <= towers[k + 1][0] + 1.0)
+        assert inside.mean() > 0.99
+        assert np.ptp(x[inside]) > 85.0
+        assert w.rms_residual < 0.04
+
+
+def test_a_span_s_wire_takes_no_stray_points_past_the_support_it_ends_at():
+    # As above, and a few stray points (false matches) lie on span 1's curves continued
+    # 20 m into span 2, 2 m apart: too few for a wire, close enough to the continued curve
+    # to be taken as its points, which would carry the wire's end into span 2 (shared
+    # multispan seed 3: span 1's L2 ran 23 m on, and the views then rejected it).
+    rng = np.random.default_rng(6)
+    towers, _ = _towers(0.0)
+    parts = []
+    for c, z in PHASES:
+        for k in range(4):
+            a, b = np.r_[towers[k] + (0.0, -c), z], np.r_[towers[k + 1] + (0.0, -c), z]
+            parts.append(_span_points(a, b, 900.0, rng, keep=(0.3, 0.3)))
+            if k == 0:
+                run_on = _span_points(a, b, 900.0, rng, keep=(0.3, -20.0))
+                parts.append(run_on[run_on[:, 0] > b[0] + 0.5][::40])
+    pts = np.concatenate(parts)
+    wires = split_wires(pts, 90.0)
+    assert len(wires) == 16
+    for w in wires:
+        x = pts[w.point_indices, 0]
+        k = int(np.floor((np.median(x) + 180.0) / 90.0))
+        assert towers[k][0] - 1.0 <= x.min() and x.max() <= towers[k + 1][0] + 1.0
+        assert np.ptp(x) > 85.0
+
+
+def test_pieces_meeting_where_the_next_span_s_wires_run_through_are_no_support(caplog):
+    # A straight line of four spans, every conductor measured span by span; the upper two
+    # conductors' wires of spans 1 and 3 carry a tail of stray points 17-27 m into span 2
+    # (on their curves continued, as a few false matches lie). Continued, those curves
+    # meet mid-span in a downward bend, where the span-2 wires are measured straight
+    # through: no support there, the tails left out, every wire kept.
+    rng = np.random.default_rng(5)
+    pts, wires, legs, towers = _line(rng, 0.0, join_first_two=False)
+    extra = []
+    n = len(pts)
+    for j, w in enumerate(wires):
+        span = j % 4
+        if PHASES[j // 4][1] != 35.0 or span not in (0, 2):
+            continue
+        at = np.array([towers[1][0] + 22.0 if span == 0 else towers[2][0] - 22.0, 0.0])
+        s_mid = float(w.plane_coords(np.r_[at, 30.0][None])[0][0])
+        tail = w.points(np.linspace(s_mid - 5.0, s_mid + 5.0, 60))
+        tail += rng.normal(0, 0.02, tail.shape)
+        idx = np.arange(n, n + len(tail))
+        n += len(tail)
+        extra.append(tail)
+        s_all = w.plane_coords(np.r_[pts[w.point_indices], tail])[0]
+        wires[j] = dataclasses.replace(
+            w,
+            point_indices=np.r_[w.point_indices, idx],
+            s_range=(float(s_all.min()), float(s_all.max())),
+        )
+    pts = np.r_[pts, *extra]
+    with caplog.at_level("INFO", logger="colmap_powerline.spans"):
+        sp = find_spans(_views(220.0), _flat, wires, [0] * len(legs), [_corridor(90.0)], pts)
+    found = np.array([s.position[:2] for s in sp.supports])
+    assert len(sp.supports) == 5
+    assert max(np.min(np.linalg.norm(found - t, axis=1)) for t in towers[1:4]) < 0.5
+    assert "no support at" in caplog.text
+    assert len(sp.wires) == 16
+    for w in sp.wires:
+        x = w.points(np.array(w.s_range))[:, 0]
+        k = int(np.floor((float(np.mean(x)) + 180.0) / 90.0))
+        assert towers[k][0] - 6.0 <= x.min() and x.max() <= towers[k + 1][0] + 6.0
 
 
 def test_wires_running_out_of_the_images_end_at_no_support():
