@@ -513,9 +513,9 @@ def _past_supports(
     s: F64, own: F64, supports: list[float], options: WiresOptions
 ) -> npt.NDArray[np.bool_]:
     """Which of the places ``s`` (along the line) lie past a support at which a wire whose
-    points lie at ``own`` ends (within ``min_length``) and past its own points: the next
-    span's. A few stray points
-    near its curve continued would otherwise carry its end tens of metres into that span."""
+    points lie at ``own`` ends (within ``min_length``), and past its own points: the next
+    span's. A few stray points near its curve continued would otherwise carry its end tens
+    of metres into that span."""
     past = np.zeros(len(s), bool)
     if len(own) == 0:
         return past
