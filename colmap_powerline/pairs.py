@@ -317,32 +317,13 @@ def _pick_spread(scene: Scene, n: int) -> list[SceneImage]:
     return [scene.images[k] for k in chosen]
 
 
-def _consensus_azimuth(
-    azimuths: F64,
-    weights: F64,
-    tolerance_deg: float = 5.0,
-    min_share: float = 1 / 3,
-    mean_weights: F64 | None = None,
-) -> float | None:
-    """The azimuth (mod 180) most images agree on within a tolerance, weighted; None when no
-    direction gathers a third of the weight (images without wires vote at random). Its
-    members' mean is weighted by ``mean_weights`` (default ``weights``)."""
-    diff = axial_diff_deg(azimuths[:, None], azimuths[None, :])
-    support = (diff < tolerance_deg) @ weights
-    best = int(np.argmax(support))
-    if support[best] <= min_share * weights.sum():
-        return None
-    members = diff[best] < tolerance_deg
-    mean_w = weights if mean_weights is None else mean_weights
-    return axial_mean_deg(azimuths[members], mean_w[members])
-
-
 def _ranked_directions(
     azimuths: F64, contrast: F64, tolerance_deg: float, most: int
 ) -> list[tuple[float, float]]:
     """Up to ``most`` (azimuth, weight) directions the images' line peaks (``azimuths``,
     each with its ``contrast`` against its image's median direction) agree on, strongest
-    first.
+    first: repeatedly the peak with the most weight within ``tolerance_deg`` of it (mod
+    180), its neighbours' mean, and those peaks set aside.
 
     A peak weighs what its lines add to its image's typical direction (contrast 1: nothing):
     many images' peaks at the texture's level outvoted a line that one image shows plainly
@@ -350,18 +331,17 @@ def _ranked_directions(
     ranked 22nd by contrast; 9th so). A direction's azimuth is its members' mean weighted
     by their contrast."""
     weights = np.maximum(contrast - 1.0, 0.0)
+    close = axial_diff_deg(azimuths[:, None], azimuths[None, :]) < tolerance_deg
     cands: list[tuple[float, float]] = []
     remaining = np.ones(len(azimuths), bool)
     while remaining.any() and len(cands) < most:
-        cand = _consensus_azimuth(
-            azimuths[remaining],
-            weights[remaining],
-            tolerance_deg=tolerance_deg,
-            min_share=0.0,
-            mean_weights=contrast[remaining],
-        )
-        if cand is None:
-            break
+        left = np.flatnonzero(remaining)
+        support = close[np.ix_(left, left)] @ weights[left]
+        best = left[int(np.argmax(support))]
+        if support.max() <= 0.0:
+            break  # only peaks that add nothing are left
+        members = remaining & close[best]
+        cand = axial_mean_deg(azimuths[members], contrast[members])
         near = axial_diff_deg(azimuths, cand) < tolerance_deg
         cands.append((cand, float(weights[near & remaining].sum())))
         remaining &= ~near
@@ -390,9 +370,9 @@ class DirectionCandidates:
 WIDE_PEAKS = 5
 WIDE_CANDIDATES = 2
 # When the wider look's first candidates have no line either, the probes go on down its
-# list, up to this many times ``max_candidates`` in all (shared grid seed 4 since the wider
-# look reads full resolution: roads' and field edges' directions rank first, the line's 70°
-# eleventh): an area survey's line is looked for before the run gives up on it.
+# list, up to this many times ``max_candidates`` in all (shared grid seeds 4 and 6: roads'
+# and field edges' directions rank first, the line's 70° 6th and 9th): an area survey's
+# line is looked for before the run gives up on it.
 LOST_CANDIDATES = 4
 
 
