@@ -24,12 +24,24 @@ images: its baseline's pose error, and a blend where another wire's line lies on
 in one of them (a circuit on three levels seen from above stacks two of them in most images
 of a flight across the line). The traced points are fixed by every view that sees the place
 clearly (two lines fitted jointly where they are close). Scatter averages out of the median;
-what is left is the two measurements' disagreement: the wire's position is uncertain by
-about that much, whichever is right.
+what is left is the two measurements' disagreement.
+
+The traced points are the better measurement of the two where they disagree (every view
+against two, and two lines fitted jointly where a pair's detector saw one blend): on the
+shared generator's flight across the line, the middle phases' pairs' points lie 2-12 cm
+off in height, pair by pair, and the traced points near them within 2 cm of the truth.
+So each pair's points on a wire are moved by that pair's own median offset from the
+traced points (:func:`pairs_onto_traced`), where it is compared with them at
+``MIN_COMPARED_WINDOWS`` places or more, and the wire is fitted again: the pairs keep
+their density and their scatter, the traced points give the datum. The offset is one
+per pair and wire: what a pair's relative orientation or a blend in its images does to a
+wire changes little along it (a line through each pair's offsets along the wire measured
+no better on that flight). The disagreement reported is the one before the move.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass
@@ -39,11 +51,11 @@ import numpy as np
 import numpy.typing as npt
 from scipy.stats import binned_statistic
 
-from .geometry import offsets_across, positions_across
+from .geometry import across_of, offsets_across, positions_across
 from .scene import Scene, SceneImage
 from .trace import MIN_VIEWS, _beside_others
 from .verify import _roughly_in_view
-from .wires import FittedWire
+from .wires import FittedWire, WiresOptions, _fit
 
 logger = logging.getLogger(__name__)
 
@@ -59,6 +71,9 @@ MIN_REPORTED_GAP = 1.0
 AGREEMENT_WINDOW = 0.5
 # ... holding at least this many traced points.
 MIN_TRACED_IN_WINDOW = 3
+# A pair's offset from the traced points on a wire is taken (and its points moved by it)
+# where it is compared at this many windows or more: a median of fewer places is no datum.
+MIN_COMPARED_WINDOWS = 5
 
 # How far along the other wires their images are sampled either side of a gap's middle
 # (model units), and how finely: enough to find where each crosses the gap's image normal.
@@ -137,6 +152,10 @@ class WireCoverage:
     # points compared.
     pairs_vs_traced: tuple[float, float] | None = None
     compared_share: float = 0.0
+    # The pairs whose points on the wire were moved onto the traced points, and the
+    # largest move (model units).
+    pairs_moved: int = 0
+    largest_move: float = 0.0
 
     @property
     def longest_gap_m(self) -> float:
@@ -161,8 +180,31 @@ class WireCoverage:
                 "height_m": round(self.pairs_vs_traced[1], 4),
                 "distance_m": round(self.disagreement_m or 0.0, 4),
                 "compared_share": round(self.compared_share, 3),
+                "pairs_moved": self.pairs_moved,
+                "largest_move_m": round(self.largest_move, 4),
             },
         }
+
+
+def _offsets_from_traced(
+    s: F64, across: F64, dz: F64, paired: npt.NDArray[np.bool_]
+) -> tuple[F64, F64, npt.NDArray[np.int64]] | None:
+    """Each pair point's (across, height) offset from the median of the traced points in its
+    ``AGREEMENT_WINDOW`` along the wire (NaN where that window holds fewer than
+    ``MIN_TRACED_IN_WINDOW``), and its window; None: too few points of either kind.
+    ``s``, ``across``, ``dz``: the wire's points in its plane's coordinates."""
+    traced = ~paired
+    if not paired.any() or traced.sum() < MIN_TRACED_IN_WINDOW:
+        return None
+    n_bins = int((s.max() - s.min()) // AGREEMENT_WINDOW) + 1
+    edges = s.min() + AGREEMENT_WINDOW * np.arange(n_bins + 1)
+    ref = binned_statistic(s[traced], [across[traced], dz[traced]], "median", bins=edges)
+    count = np.bincount(ref.binnumber - 1, minlength=n_bins)
+    b = np.clip(np.searchsorted(edges, s, side="right") - 1, 0, n_bins - 1)
+    ok = paired & (count[b] >= MIN_TRACED_IN_WINDOW)
+    d_across = np.where(ok, across - ref.statistic[0][b], np.nan)
+    d_height = np.where(ok, dz - ref.statistic[1][b], np.nan)
+    return d_across, d_height, b
 
 
 def _pairs_vs_traced(
@@ -171,20 +213,85 @@ def _pairs_vs_traced(
     """The median (across, height) offset of a wire's pairs' points (``paired``) from its
     traced points in the same ``AGREEMENT_WINDOW`` along it, and the share of its pairs'
     points compared; ``s``, ``across``, ``dz``: its points in its plane's coordinates."""
-    traced = ~paired
-    if not paired.any() or traced.sum() < MIN_TRACED_IN_WINDOW:
+    found = _offsets_from_traced(s, across, dz, paired)
+    if found is None:
         return None, 0.0
-    n_bins = int((s.max() - s.min()) // AGREEMENT_WINDOW) + 1
-    edges = s.min() + AGREEMENT_WINDOW * np.arange(n_bins + 1)
-    ref = binned_statistic(s[traced], [across[traced], dz[traced]], "median", bins=edges)
-    count = np.bincount(ref.binnumber - 1, minlength=n_bins)
-    b = np.clip(np.searchsorted(edges, s[paired], side="right") - 1, 0, n_bins - 1)
-    ok = count[b] >= MIN_TRACED_IN_WINDOW
+    d_across, d_height, _ = found
+    ok = np.isfinite(d_across)
     if not ok.any():
         return None, 0.0
-    d_across = across[paired][ok] - ref.statistic[0][b[ok]]
-    d_height = dz[paired][ok] - ref.statistic[1][b[ok]]
-    return (float(np.median(d_across)), float(np.median(d_height))), float(ok.mean())
+    return (
+        (float(np.median(d_across[ok])), float(np.median(d_height[ok]))),
+        float(ok.sum() / paired.sum()),
+    )
+
+
+def _curve_refitted(wire: FittedWire, pts_in_world: F64, options: WiresOptions) -> FittedWire:
+    """The wire's curve fitted again to its points (moved), with the same points and ends:
+    which points are the wire's and where it ends were decided before, a datum shift of
+    centimetres does not change them."""
+    fit = _fit(pts_in_world, wire.point_indices, wire.plane_direction_xy, options)
+    if fit is None:
+        return wire
+    ends = wire.points(np.array(wire.s_range))[:, :2]
+    s_ends = (ends - fit.plane_origin_xy) @ fit.plane_direction_xy
+    return dataclasses.replace(
+        fit,
+        wire_id=wire.wire_id,
+        s_range=(float(s_ends.min()), float(s_ends.max())),
+        point_indices=wire.point_indices,
+    )
+
+
+def pairs_onto_traced(
+    wires: Sequence[FittedWire],
+    pts_in_world: F64,
+    pair_index: npt.NDArray[np.int32],
+    options: WiresOptions,
+) -> tuple[F64, list[FittedWire], list[tuple[int, float]]]:
+    """Each pair's points on each wire moved by that pair's median offset (across the wire
+    and in height) from the wire's traced points near them, where compared at
+    ``MIN_COMPARED_WINDOWS`` windows or more (module docstring); the wires fitted again to
+    the moved points. ``pair_index`` (N,): each point's pair (< 0: traced).
+
+    Returns the moved points (a copy), the wires, and per wire the number of pairs moved
+    and the largest move."""
+    pts = np.array(pts_in_world, np.float64, copy=True)
+    moved = np.zeros(len(pts), bool)  # a point two wires share is moved once
+    out_wires: list[FittedWire] = []
+    summary: list[tuple[int, float]] = []
+    for wire in wires:
+        idx = wire.point_indices
+        s, across, dz = wire.plane_coords(pts_in_world[idx])
+        pairs = pair_index[idx]
+        found = _offsets_from_traced(s, across, dz, pairs >= 0)
+        n_moved, largest = 0, 0.0
+        if found is not None:
+            d_across, d_height, window = found
+            side = np.r_[across_of(wire.plane_direction_xy), 0.0]
+            for p in np.unique(pairs[pairs >= 0]):
+                mine = (pairs == p) & ~moved[idx]
+                compared = mine & np.isfinite(d_across)
+                if len(np.unique(window[compared])) < MIN_COMPARED_WINDOWS:
+                    continue
+                shift = float(np.median(d_across[compared])) * side
+                shift[2] = float(np.median(d_height[compared]))
+                pts[idx[mine]] -= shift
+                moved[idx[mine]] = True
+                n_moved += 1
+                largest = max(largest, float(np.linalg.norm(shift)))
+        if n_moved:
+            wire = _curve_refitted(wire, pts, options)
+            logger.info(
+                "coverage: wire %d: the points of %d pair(s) moved onto the traced points "
+                "(each by its own offset from them; at most %.3f)",
+                wire.wire_id,
+                n_moved,
+                largest,
+            )
+        out_wires.append(wire)
+        summary.append((n_moved, largest))
+    return pts, out_wires, summary
 
 
 def _unmeasured_runs(
@@ -352,15 +459,19 @@ def log_coverage(
     for wire, cov in zip(wires, coverage, strict=True):
         if cov.pairs_vs_traced is not None:
             beyond = (cov.disagreement_m or 0.0) > radius / 2.33
-            (logger.warning if beyond else logger.info)(
+            (logger.warning if beyond and not cov.pairs_moved else logger.info)(
                 "coverage: wire %d: the pairs' points lie %.3f from the traced points near "
                 "them (median; %+.3f across, %+.3f in height; %.0f %% of them compared)%s",
                 wire.wire_id,
                 cov.disagreement_m,
                 *cov.pairs_vs_traced,
                 100 * cov.compared_share,
-                ": its position is uncertain by about that much (two wires' lines on each "
-                "other in the pairs' images, or the model's pose error)"
+                (
+                    ": each pair's points moved onto the traced points"
+                    if cov.pairs_moved
+                    else ": its position is uncertain by about that much (two wires' lines "
+                    "on each other in the pairs' images, or the model's pose error)"
+                )
                 if beyond
                 else "",
             )

@@ -20,7 +20,7 @@ import numpy.typing as npt
 from scipy.spatial import cKDTree
 
 from .clearance import WireMeasures, assign_kinds, measure_wire
-from .coverage import log_coverage, measured_coverage
+from .coverage import log_coverage, measured_coverage, pairs_onto_traced
 from .dense import dense_ground, fill, open_ply
 from .detect import DetectOptions, WireMask, detect_wires
 from .errors import InputError, PairGeometryError
@@ -695,6 +695,14 @@ def reconstruct(
         options.verify.crossing_offset,
         verified.pair_index >= 0,
     )
+    moved_pts, wires, moves = pairs_onto_traced(
+        wires, verified.pts_in_world, verified.pair_index, options.wires
+    )
+    verified = dataclasses.replace(verified, pts_in_world=moved_pts)
+    coverage = [
+        dataclasses.replace(c, pairs_moved=n, largest_move=m)
+        for c, (n, m) in zip(coverage, moves, strict=True)
+    ]
     log_coverage(wires, coverage, options.wires.inlier_distance)
     timings["coverage"] = time.perf_counter() - t0
     t0 = time.perf_counter()
