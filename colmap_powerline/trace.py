@@ -960,6 +960,70 @@ def primitive_reach(
     return (min(reached), max(reached))
 
 
+def support_reach(
+    wires: list[FittedWire], pts_in_world: F64, along: F64, extend: float
+) -> tuple[float | None, float | None]:
+    """Where along the line (``along``) the first support beyond each end of the measured
+    wires stands, from the verified points none of the wires holds (None at an end: no
+    support marked beyond it, or the wires already reach one).
+
+    A support's members (lattice, arms, insulators) give false matches that the other views
+    confirm in every direction: its verified points pile up along the line around it more
+    densely than anywhere along the wires' own stretch, where only chance pairings lie. The
+    density is counted in bins of a fifth of ``extend``, within the wires' band across the
+    line (one ``extend`` either side); its reference is the highest bin over the stretch
+    between the ends, short of one ``extend`` at each (where a support the wires reach
+    begins). Beyond an end, the first run of bins above the reference by more than its
+    Poisson noise is a support; the
+    arms hold the wires at its middle along the line: its density-weighted centre. An end
+    that lies in such a run already reaches its support."""
+    if not wires or len(pts_in_world) == 0 or extend <= 0:
+        return None, None
+    across = across_of(along)
+    held = np.zeros(len(pts_in_world), bool)
+    for w in wires:
+        held[w.point_indices[w.point_indices < len(pts_in_world)]] = True
+    ends = np.concatenate([w.points(np.array(w.s_range))[:, :2] for w in wires])
+    lo, hi = float((ends @ along).min()), float((ends @ along).max())
+    c = ends @ across
+    xy = pts_in_world[~held, :2]
+    band = (xy @ across > c.min() - extend) & (xy @ across < c.max() + extend)
+    u = xy[band] @ along
+    if len(u) == 0:
+        return None, None
+    bin_len = extend / 5.0
+    start = min(float(u.min()), lo) - bin_len
+    edges = start + bin_len * np.arange(
+        int(np.ceil((max(float(u.max()), hi) - start) / bin_len)) + 2
+    )
+    count = np.histogram(u, edges)[0].astype(np.float64)
+    centre = 0.5 * (edges[:-1] + edges[1:])
+    inner = (centre > lo + extend) & (centre < hi - extend)
+    if not inner.any():
+        return None, None
+    # Above the highest count between the ends by more than its Poisson noise (three standard
+    # deviations): not a chance high of the matches scattered along the line.
+    top = float(count[inner].max())
+    above = count > top + 3.0 * np.sqrt(max(top, 1.0))
+    out: list[float | None] = []
+    for end, sign in ((lo, -1.0), (hi, 1.0)):
+        beyond = np.flatnonzero(sign * (centre - end) > 0)
+        beyond = beyond[np.argsort(sign * (centre[beyond] - end))]
+        at_end = int(np.clip(np.searchsorted(edges, end) - 1, 0, len(count) - 1))
+        first = next((int(i) for i in beyond if above[i]), None)
+        if first is None or above[at_end]:
+            out.append(None)
+            continue
+        run = [first]
+        nxt = first + int(sign)
+        while 0 <= nxt < len(count) and above[nxt]:
+            run.append(nxt)
+            nxt += int(sign)
+        run_idx = np.array(run)
+        out.append(float(np.average(centre[run_idx], weights=count[run_idx])))
+    return out[0], out[1]
+
+
 def trace_wires(
     scene: Scene,
     wires: list[FittedWire],
@@ -1056,7 +1120,8 @@ def trace_wires(
     ends_along = np.concatenate(
         [w.points(np.array(w.s_range))[:, :2] @ along for w in wires + context]
     )
-    reach = (float(ends_along.min()), float(ends_along.max()))
+    measured = (float(ends_along.min()), float(ends_along.max()))
+    reach = measured
     if primitives is not None:
         # Taken where the matches run on for more than one round past the measured wires:
         # a support's insulators and clamps, in line with the wire, give a shorter run
@@ -1065,9 +1130,24 @@ def trace_wires(
         matched = primitive_reach(wires, primitives, along, wires_options.inlier_distance)
         if matched is not None:
             reach = (
-                matched[0] if matched[0] < reach[0] - options.extend else reach[0],
-                matched[1] if matched[1] > reach[1] + options.extend else reach[1],
+                matched[0] if matched[0] < measured[0] - options.extend else measured[0],
+                matched[1] if matched[1] > measured[1] + options.extend else measured[1],
             )
+    # Where the measured wires stop short of a support the verified points mark beyond them
+    # (the pairs see too little of the wire there, or the detector lost it over the ground
+    # there), the trace may go on up to it.
+    marked = support_reach(wires, pts_in_world, along, options.extend)
+    if marked[0] is not None or marked[1] is not None:
+        logger.info(
+            "trace: the measured wires reach %.1f..%.1f along the line; supports marked "
+            "beyond them at %s",
+            *measured,
+            ", ".join("-" if m is None else f"{m:.1f}" for m in marked),
+        )
+    reach = (
+        min(reach[0], marked[0]) if marked[0] is not None else reach[0],
+        max(reach[1], marked[1]) if marked[1] is not None else reach[1],
+    )
 
     # Each wire's vertical plane, continued one extension past the ends of the stretch the
     # views confirmed, leaves its own points by this much: what the bend test past an end

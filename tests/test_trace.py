@@ -29,6 +29,7 @@ from colmap_powerline.trace import (
     _places,
     _Solution,
     primitive_reach,
+    support_reach,
     trace_wires,
 )
 from colmap_powerline.verify import _wire_offsets
@@ -390,6 +391,44 @@ def test_matches_continuing_a_wire_take_tracing_farther_along_the_line():
     _, hi = primitive_reach([wire], np.r_[clutter, tower], along, inlier)
     assert hi < 41.0
     assert primitive_reach([], clutter, along, inlier) is None
+
+
+def test_a_support_the_verified_points_mark_beyond_an_end_lets_tracing_reach_it():
+    """Three wires measured from s 0 to 60 m of a span whose supports stand at 0 and 90 m
+    (the pairs lost the last 30 m): the verified false matches pile up on each support's
+    members. The end short of its support may go on to that support's middle along the
+    line; the end that reaches its support is not moved; chance matches alone along the
+    line mark nothing, and neither does a pile that is no denser than the stretch between."""
+    rng = np.random.default_rng(3)
+    along = np.array([1.0, 0.0])
+    pts = []
+    for y in (-4.0, 0.0, 4.0):
+        p = _catenary_points(np.arange(0.0, 60.0, 0.05), 30.0, 0.0, rng)
+        p[:, 1] += y
+        pts.append(p)
+    measured = np.concatenate(pts)
+    wires = []
+    for k, p in enumerate(pts):
+        w = _fit(measured, k * len(p) + np.arange(len(p)), along, WiresOptions())
+        assert w is not None
+        wires.append(w)
+    chance = np.c_[rng.uniform(-20, 110, 3000), rng.uniform(-8, 8, 3000), rng.uniform(0, 40, 3000)]
+
+    def pile(x0: float, k: int) -> np.ndarray:
+        return np.c_[rng.normal(x0, 1.5, k), rng.uniform(-6, 6, k), rng.uniform(0, 32, k)]
+
+    everything = np.r_[measured, chance, pile(0.0, 4000), pile(90.0, 4000)]
+    lo, hi = support_reach(wires, everything, along, 5.0)
+    assert lo is None  # the wires reach the support at 0 m
+    assert hi == pytest.approx(90.0, abs=1.0)
+    # No support marked: chance matches only, or a pile no denser than the clutter between.
+    assert support_reach(wires, np.r_[measured, chance], along, 5.0) == (None, None)
+    busy = np.r_[measured, chance, pile(30.0, 4000), pile(90.0, 3000)]
+    assert support_reach(wires, busy, along, 5.0) == (None, None)
+    # Off to the side of the line, a pile is not this line's support.
+    aside = pile(90.0, 4000) + [0.0, 30.0, 0.0]
+    assert support_reach(wires, np.r_[measured, chance, aside], along, 5.0)[1] is None
+    assert support_reach([], everything, along, 5.0) == (None, None)
 
 
 def test_an_end_the_views_find_at_few_places_stops(small_scene, conductors):
