@@ -961,7 +961,11 @@ def primitive_reach(
 
 
 def support_reach(
-    wires: list[FittedWire], pts_in_world: F64, along: F64, extend: float
+    wires: list[FittedWire],
+    pts_in_world: F64,
+    along: F64,
+    extend: float,
+    measured: tuple[float, float] | None = None,
 ) -> tuple[float | None, float | None]:
     """Where along the line (``along``) the first support beyond each end of the measured
     wires stands, from the verified points none of the wires holds (None at an end: no
@@ -976,7 +980,9 @@ def support_reach(
     begins). Beyond an end, the first run of bins above the reference by more than its
     Poisson noise is a support; the
     arms hold the wires at its middle along the line: its density-weighted centre. An end
-    that lies in such a run already reaches its support."""
+    that lies in such a run already reaches its support. ``measured``: how far along the
+    line the measured wires reach, other wires than ``wires`` included (default: the ends
+    of ``wires``)."""
     if not wires or len(pts_in_world) == 0 or extend <= 0:
         return None, None
     across = across_of(along)
@@ -984,7 +990,7 @@ def support_reach(
     for w in wires:
         held[w.point_indices[w.point_indices < len(pts_in_world)]] = True
     ends = np.concatenate([w.points(np.array(w.s_range))[:, :2] for w in wires])
-    lo, hi = float((ends @ along).min()), float((ends @ along).max())
+    lo, hi = measured or (float((ends @ along).min()), float((ends @ along).max()))
     c = ends @ across
     xy = pts_in_world[~held, :2]
     band = (xy @ across > c.min() - extend) & (xy @ across < c.max() + extend)
@@ -1136,7 +1142,7 @@ def trace_wires(
     # Where the measured wires stop short of a support the verified points mark beyond them
     # (the pairs see too little of the wire there, or the detector lost it over the ground
     # there), the trace may go on up to it.
-    marked = support_reach(wires, pts_in_world, along, options.extend)
+    marked = support_reach(wires, pts_in_world, along, options.extend, measured)
     if marked[0] is not None or marked[1] is not None:
         logger.info(
             "trace: the measured wires reach %.1f..%.1f along the line; supports marked "

@@ -428,6 +428,8 @@ def test_a_support_the_verified_points_mark_beyond_an_end_lets_tracing_reach_it(
     # Off to the side of the line, a pile is not this line's support.
     aside = pile(90.0, 4000) + [0.0, 30.0, 0.0]
     assert support_reach(wires, np.r_[measured, chance, aside], along, 5.0)[1] is None
+    # Other wires measured past the support: nothing beyond the measured reach to go on to.
+    assert support_reach(wires, everything, along, 5.0, (0.0, 95.0)) == (None, None)
     assert support_reach([], everything, along, 5.0) == (None, None)
 
 
