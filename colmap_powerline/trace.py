@@ -978,8 +978,8 @@ def support_reach(
     line (one ``extend`` either side); its reference is the highest bin over the stretch
     between the ends, short of one ``extend`` at each (where a support the wires reach
     begins). Beyond an end, the first run of bins above the reference by more than its
-    Poisson noise is a support; the
-    arms hold the wires at its middle along the line: its density-weighted centre. An end
+    Poisson noise is a support; the arms hold the wires at its middle along the line: its
+    density-weighted centre. An end
     that lies in such a run already reaches its support. ``measured``: how far along the
     line the measured wires reach, other wires than ``wires`` included (default: the ends
     of ``wires``)."""
@@ -987,8 +987,7 @@ def support_reach(
         return None, None
     across = across_of(along)
     held = np.zeros(len(pts_in_world), bool)
-    for w in wires:
-        held[w.point_indices[w.point_indices < len(pts_in_world)]] = True
+    held[np.concatenate([w.point_indices for w in wires])] = True
     ends = np.concatenate([w.points(np.array(w.s_range))[:, :2] for w in wires])
     lo, hi = measured or (float((ends @ along).min()), float((ends @ along).max()))
     c = ends @ across
@@ -1012,21 +1011,16 @@ def support_reach(
     top = float(count[inner].max())
     above = count > top + 3.0 * np.sqrt(max(top, 1.0))
     out: list[float | None] = []
-    for end, sign in ((lo, -1.0), (hi, 1.0)):
-        beyond = np.flatnonzero(sign * (centre - end) > 0)
-        beyond = beyond[np.argsort(sign * (centre[beyond] - end))]
+    for end, sign in ((lo, -1), (hi, 1)):
         at_end = int(np.clip(np.searchsorted(edges, end) - 1, 0, len(count) - 1))
-        first = next((int(i) for i in beyond if above[i]), None)
-        if first is None or above[at_end]:
+        walk = np.flatnonzero(sign * (centre - end) > 0)[::sign]  # past the end, outwards
+        hits = np.flatnonzero(above[walk])
+        if above[at_end] or len(hits) == 0:
             out.append(None)
             continue
-        run = [first]
-        nxt = first + int(sign)
-        while 0 <= nxt < len(count) and above[nxt]:
-            run.append(nxt)
-            nxt += int(sign)
-        run_idx = np.array(run)
-        out.append(float(np.average(centre[run_idx], weights=count[run_idx])))
+        rest = above[walk[hits[0] :]]
+        run = walk[hits[0] : hits[0] + (len(rest) if rest.all() else int(np.argmin(rest)))]
+        out.append(float(np.average(centre[run], weights=count[run])))
     return out[0], out[1]
 
 
