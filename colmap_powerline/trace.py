@@ -29,7 +29,9 @@ fix it, the third checks it) and its predicted precision — from the geometry o
 and the image noise measured on the redundant points themselves — is within
 ``WiresOptions.inlier_distance / 2.33``. On a confirmed wire, a point only two views fix is
 kept where it lies on the wire's curve within their joint error, wherever the curve is
-known that well: the curve is the check (:func:`_checked_by_curve`). Views along the wires
+known that well: the curve is the check (:func:`_checked_by_curve`). Between a wire's
+measured ends the curve also fixes what views of one strip, whose rays meet at a narrow
+angle, leave loose along their rays: there the views and the curve are combined. Views along the wires
 from one strip give nearly the same plane and cannot fix a point: only their combination
 with views offset across the wire does.
 
@@ -688,34 +690,69 @@ def _checked_by_curve(
     wires: list[FittedWire],
     all_pts: F64,
     corr: float,
-) -> npt.NDArray[np.bool_]:
-    """The places fixed by exactly two views (well enough) whose point lies on its wire's
-    curve within the point's error and the curve's there (from the points it was fitted to,
-    ``corr`` neighbours counted as one), where the curve itself is known to ``max_sigma``:
-    the curve is the check a third view would give (near a support, where three views see
-    a wire's end and one of them misses it, or where only two views see the wire at all)."""
-    two = (
-        np.isfinite(sol.x[:, 0])
-        & (sol.n_views == 2)
-        & (sigma <= max_sigma)
-        & (places.wire < places.n_traced)
-    )
+    model_error: Sequence[float] | None = None,
+    loose_sigma: float = 0.0,
+) -> tuple[npt.NDArray[np.bool_], F64, F64]:
+    """The places the wire's curve checks, and their offsets and precision (the solution's,
+    or, where the curve is what fixes them, the two combined).
+
+    A place fixed by exactly two views (well enough) is kept where its point lies on its
+    wire's curve within the point's error and the curve's there (from the points it was
+    fitted to, ``corr`` neighbours counted as one; across, also ``model_error[k]``, how far
+    the wire's plane leaves its own points: a wire the wind tilted bows in plan), where the
+    curve itself is known to ``max_sigma``: the curve is the check a third view would give
+    (near a support, where three views see a wire's end and one of them misses it, or where
+    only two views see the wire at all).
+
+    Between the wire's measured ends the curve also fixes what the views leave loose: views
+    of one strip whose rays meet at a narrow angle fix a point across their rays well and
+    along them poorly (on the shared area survey, 7 cm where a point must be known to 5 cm,
+    with the curve known to 2 mm there). Such a place (its views fix it to ``max_sigma`` in
+    one direction, and to ``loose_sigma`` in the other: the test must still be able to tell
+    the wire from another one beside it, which the views see within their reach where their
+    rays are near parallel: a wire 6 m above the curve, from two views nearly overhead) is
+    kept where it passes the same test and the views and the curve together fix it to
+    ``max_sigma``; its point is their weighted combination, with its precision. Past the
+    ends, where the curve is continued and the bend test must see where the wire leaves it,
+    only the views fix a point."""
+    solved = np.isfinite(sol.x[:, 0]) & (places.wire < places.n_traced)
+    x_out, sigma_out = sol.x.copy(), sigma.copy()
+    two = solved & (sol.n_views == 2) & (sigma <= max_sigma)
+    loose = solved & (sol.n_views >= 2) & (sigma > max_sigma) & (sigma <= loose_sigma)
     out = np.zeros(len(two), bool)
-    for k in np.unique(places.wire[two]):
-        m = np.flatnonzero(two & (places.wire == k))
+    for k in np.unique(places.wire[two | loose]):
+        m = np.flatnonzero((two | loose) & (places.wire == k))
         w = wires[k]
-        sig_a, sig_z = _prediction_sigma(
-            w, all_pts[w.point_indices], w.plane_coords(places.pts[m])[0], corr
-        )
-        cov = np.linalg.inv(sol.normal[m]) * sigma_px**2
+        s = w.plane_coords(places.pts[m])[0]
+        sig_a, sig_z = _prediction_sigma(w, all_pts[w.point_indices], s, corr)
+        if model_error is not None:
+            sig_a = np.hypot(sig_a, model_error[k])
+        cov_views = np.linalg.inv(sol.normal[m]) * sigma_px**2
+        cov = cov_views.copy()
         cov[:, 0, 0] += sig_a**2
         cov[:, 1, 1] += sig_z**2
         x = sol.x[m]
         # Only where the curve is known well enough to check (not far past a short piece).
-        out[m] = (np.einsum("ni,nij,nj->n", x, np.linalg.inv(cov), x) <= CURVE_CHI2) & (
+        ok = (np.einsum("ni,nij,nj->n", x, np.linalg.inv(cov), x) <= CURVE_CHI2) & (
             np.hypot(sig_a, sig_z) <= max_sigma
         )
-    return out
+        weak = loose[m]
+        if weak.any():
+            # The views' best-fixed direction within max_sigma; the curve, known between
+            # the ends, fixes the rest: the two combined (the curve's offset is 0).
+            views_best = np.sqrt(np.linalg.eigvalsh(cov_views[weak])[:, 0])
+            inside = (s[weak] >= w.s_range[0]) & (s[weak] <= w.s_range[1])
+            info = sol.normal[m[weak]] / sigma_px**2
+            prior = np.zeros_like(info)
+            prior[:, 0, 0] = 1.0 / sig_a[weak] ** 2
+            prior[:, 1, 1] = 1.0 / sig_z[weak] ** 2
+            post = np.linalg.inv(info + prior)
+            post_sigma = np.sqrt(np.linalg.eigvalsh(post)[:, -1])
+            x_out[m[weak]] = np.einsum("nij,njk,nk->ni", post, info, x[weak])
+            sigma_out[m[weak]] = post_sigma
+            ok[weak] &= inside & (views_best <= max_sigma) & (post_sigma <= max_sigma)
+        out[m] = ok
+    return out, x_out, sigma_out
 
 
 def _measurable(sol: _Solution, sigma_px: float, max_sigma: float) -> npt.NDArray[np.bool_]:
@@ -1197,10 +1234,24 @@ def trace_wires(
         if min_redundancy <= 0:
             # On confirmed wires (not the second look, which asks every view to be checked
             # by the others), a place two views fix is checked by the wire's curve.
-            good |= _checked_by_curve(sol, sigma, sigma_px, max_sigma, places, wires, all_pts, corr)
+            by_curve, x, sigma = _checked_by_curve(
+                sol,
+                sigma,
+                sigma_px,
+                max_sigma,
+                places,
+                wires,
+                all_pts,
+                corr,
+                model_error,
+                wires_options.inlier_distance,
+            )
+            good |= by_curve
+        else:
+            x = sol.x
         if round_ == 0:
             base_share = _found_share(good, measurable, places.wire, len(wires))
-        x, n_views = sol.x, sol.n_views
+        n_views = sol.n_views
         pts = places.pts + np.einsum("mi,mij->mj", np.where(good[:, None], x, 0.0), places.across)
         new_wires = list(wires)
         new_ranges: list[list[tuple[float, float]]] = []

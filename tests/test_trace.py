@@ -357,9 +357,58 @@ def test_two_views_are_checked_by_the_curve_where_it_is_known():
 
     sigma = np.full(m, 0.01)
     args = (0.44, 0.05)
-    assert _checked_by_curve(solution(0.01), sigma, *args, places, [wire], pts, 10.0).all()
-    assert not _checked_by_curve(solution(0.2), sigma, *args, places, [wire], pts, 10.0).any()
-    assert not _checked_by_curve(solution(0.0), sigma, *args, far, [wire], pts, 10.0).any()
+    assert _checked_by_curve(solution(0.01), sigma, *args, places, [wire], pts, 10.0)[0].all()
+    assert not _checked_by_curve(solution(0.2), sigma, *args, places, [wire], pts, 10.0)[0].any()
+    assert not _checked_by_curve(solution(0.0), sigma, *args, far, [wire], pts, 10.0)[0].any()
+    # Their points are the views' own.
+    kept, x, sig = _checked_by_curve(solution(0.01), sigma, *args, places, [wire], pts, 10.0)
+    assert np.array_equal(x, solution(0.01).x) and np.array_equal(sig, sigma)
+
+
+def test_the_curve_fixes_what_two_views_of_one_strip_leave_loose_between_the_ends():
+    """Two views of one strip, rays meeting at a narrow angle: they fix a place across the
+    wire to 1 cm and in height to 10 cm, where a point must be known to 5 cm. On a wire
+    measured along 40 m, between its ends, the place is kept where it lies on the curve
+    (8 cm off in height, within the views' error): its point is the views and the curve
+    combined, on the curve in height and known to well within 5 cm. 20 cm off across, where
+    the views are sure, it is not the wire. Past the end, where the bend test must see the
+    wire leave its curve, the views alone decide and do not fix it; nor between the ends
+    do views that fix the place in no direction within 5 cm."""
+    rng = np.random.default_rng(11)
+    pts = _catenary_points(np.arange(0.0, 40.0, 0.025), 30.0, 0.0, rng)
+    wire = _fit(pts, np.arange(len(pts)), np.array([1.0, 0.0]), WiresOptions())
+    assert wire is not None
+    inside = _places([wire], [[(20.0, 21.0)]], np.array([0.5]), [])
+    past = _places([wire], [[(45.0, 46.0)]], np.array([0.5]), [])
+    assert inside is not None and past is not None
+    sigma_px, max_sigma = 0.44, 0.05
+
+    def solution(m: int, x: list[float], sd: tuple[float, float]) -> tuple[_Solution, np.ndarray]:
+        normal = np.tile(np.diag([(sigma_px / sd[0]) ** 2, (sigma_px / sd[1]) ** 2]), (m, 1, 1))
+        n2 = np.full(m, 2, np.int32)
+        sol = _Solution(np.tile(x, (m, 1)), np.zeros(m), n2, normal, np.zeros(m), n2, normal)
+        return sol, np.full(m, max(sd))
+
+    m = len(inside.pts)
+    sol, sigma = solution(m, [0.005, 0.08], (0.01, 0.10))
+    kept, x, sig = _checked_by_curve(
+        sol, sigma, sigma_px, max_sigma, inside, [wire], pts, 10.0, None, 0.12
+    )
+    assert kept.all()
+    assert np.all(np.abs(x[:, 1]) < 0.01) and np.all((x[:, 0] >= 0) & (x[:, 0] <= 0.005))
+    assert np.all(sig < max_sigma / 2)
+    sol, sigma = solution(m, [0.2, 0.0], (0.01, 0.10))
+    assert not _checked_by_curve(
+        sol, sigma, sigma_px, max_sigma, inside, [wire], pts, 10.0, None, 0.12
+    )[0].any()
+    sol, sigma = solution(m, [0.0, 0.0], (0.08, 0.10))
+    assert not _checked_by_curve(
+        sol, sigma, sigma_px, max_sigma, inside, [wire], pts, 10.0, None, 0.12
+    )[0].any()
+    sol, sigma = solution(len(past.pts), [0.005, 0.0], (0.01, 0.10))
+    assert not _checked_by_curve(
+        sol, sigma, sigma_px, max_sigma, past, [wire], pts, 10.0, None, 0.12
+    )[0].any()
 
 
 def test_matches_continuing_a_wire_take_tracing_farther_along_the_line():
