@@ -46,12 +46,14 @@ there, no farther along the line than the measured wires reach. A round's points
 that leave the curve continued by more than ``MAX_BEND`` standard errors (the fit's own,
 from its residuals, and the points'; across the wire also how far its vertical plane,
 continued as far, leaves its own confirmed points at its ends: a wire the wind blew out of
-the vertical bows in plan) are dropped and that end stops: past a support the next span's
-wire bends away or the line turns, and clutter a peak test took does not follow a
-catenary. "While the views keep finding them" means at no less than ``MIN_EXTEND_SHARE``
-of the rate at which they find the wire along its confirmed stretch: a round whose end
-they find less often is dropped and that end stops (a field's rows along the line give
-chance agreements at a few places, and those do follow a curve, refitted to them).
+the vertical bows in plan) in two rounds in a row are dropped and that end stops: past a
+support the next span's wire bends away or the line turns, and clutter a peak test took
+does not follow a catenary, while a piece's curve that is only off past its end follows the
+wire once refitted with one round of it. "While the views keep finding them" means at no
+less than ``MIN_EXTEND_SHARE`` of the rate at which they find the wire along its confirmed
+stretch: a round whose end they find less often is dropped and that end stops (a field's
+rows along the line give chance agreements at a few places, and those do follow a curve,
+refitted to them).
 """
 
 from __future__ import annotations
@@ -113,11 +115,16 @@ MIN_BIAS_PLACES = 20
 MIN_TRACED_SHARE = 0.2
 
 # A round's points past an end that leave the wire's curve, continued, by more than this many
-# standard errors (its fit's and theirs) are not the wire's: a support, with the next span's
-# wire bending away, or clutter the looser test took. They are dropped and that end stops.
-# On the shared generator's single spans the true extensions stay within 3.8 (one round of a
-# shield piece on the area survey: 7.1); on the real road flight (poles every ~65 m) the
-# rounds past a pole reach 5-13.
+# standard errors (its fit's and theirs) may not be the wire's: a support, with the next
+# span's wire bending away, or clutter the looser test took. Such a round is on probation:
+# when the next round past that end, the curve refitted with it, leaves it too, that end
+# stops and the points of both are dropped (so are those of a last round on probation). A
+# curve fitted to a piece can be off past its end by more than its statistics say (pose
+# errors shared along it): on the shared cross seed 6 a piece's true continuation lay 4.5
+# standard errors off it (6.5 cm, the curve itself 4.5 cm off the true wire there) once its
+# points were measured more precisely. On the shared generator's single spans the true
+# extensions otherwise stay within 3.8 (one round of a shield piece on the area survey:
+# 7.1); on the real road flight (poles every ~65 m) the rounds past a pole reach 5-13.
 MAX_BEND = 4.0
 
 # A wire's traced share is judged on at least this many places where the views would fix it
@@ -1253,6 +1260,9 @@ def trace_wires(
     base_share = np.full(len(wires), np.nan)
     # (wire, end: 0 low, 1 high) → the points of a round on probation at that end.
     probation: dict[tuple[int, int], I64] = {}
+    # (wire, end) → the points of a round past that end that left the curve continued: on
+    # probation until the next round there.
+    bent: dict[tuple[int, int], I64] = {}
     bias: dict[tuple[int, int], float] = {}
     along, _ = plan_axes(azimuth_deg)
     # How far along the line the measured wires reach.
@@ -1412,18 +1422,35 @@ def trace_wires(
                 s_new = w.plane_coords(pts[mine])[0]
                 own = all_pts[w.point_indices]
                 drop = np.zeros(len(mine), bool)
-                for side in (s_new < w.s_range[0], s_new > w.s_range[1]):
-                    if side.sum() >= corr and (
-                        _leaves_curve(
-                            w, own, pts[mine][side], sigma[mine][side], corr, model_error[k]
-                        )
-                        > MAX_BEND
-                    ):
+                leaving: list[tuple[int, npt.NDArray[np.bool_]]] = []
+                for j, side in enumerate((s_new < w.s_range[0], s_new > w.s_range[1])):
+                    if side.sum() < corr:
+                        continue
+                    bend = _leaves_curve(
+                        w, own, pts[mine][side], sigma[mine][side], corr, model_error[k]
+                    )
+                    if bend <= MAX_BEND:
+                        bent.pop((k, j), None)
+                        continue
+                    logger.debug(
+                        "trace round %d, wire %d: an end's points leave the curve by %.1f "
+                        "standard errors: %s",
+                        round_,
+                        w.wire_id,
+                        bend,
+                        "stops" if (k, j) in bent else "on probation",
+                    )
+                    if (k, j) in bent:
                         drop |= side
+                        removed = np.r_[removed, bent.pop((k, j))]
+                    else:
+                        leaving.append((j, side))
                 idx = np.r_[w.point_indices, base + np.flatnonzero(~drop)]
                 idx = idx[~np.isin(idx, removed)]
                 for j, side in weak:
                     probation[k, j] = np.intersect1d(base + np.flatnonzero(side[mine]), idx)
+                for j, side in leaving:
+                    bent[k, j] = np.intersect1d(base + np.flatnonzero(side), idx)
             fit = refit(w, all_pts, idx, along, wires_options)
             lo, hi = fit.s_range
             # An end goes on while the views found the wire over most of the last extension,
@@ -1461,9 +1488,13 @@ def trace_wires(
         ranges = new_ranges
         if options.extend == 0:
             break
-    # A last round on probation is not followed by one that finds the wire: its points go.
-    for k in sorted({k for k, _ in probation}):
-        gone = np.concatenate([v for (i, _), v in probation.items() if i == k])
+    # A last round on probation is not followed by one that finds the wire (or keeps to its
+    # curve): its points go.
+    pending = {**probation}
+    for key, v in bent.items():
+        pending[key] = np.r_[pending.get(key, np.zeros(0, np.int64)), v]
+    for k in sorted({k for k, _ in pending}):
+        gone = np.concatenate([v for (i, _), v in pending.items() if i == k])
         w = wires[k]
         wires[k] = refit(
             w, all_pts, w.point_indices[~np.isin(w.point_indices, gone)], along, wires_options
