@@ -46,10 +46,11 @@ there, no farther along the line than the measured wires reach. A round's points
 that leave the curve continued by more than ``MAX_BEND`` standard errors (the fit's own,
 from its residuals, and the points'; across the wire also how far its vertical plane,
 continued as far, leaves its own confirmed points at its ends: a wire the wind blew out of
-the vertical bows in plan) in two rounds in a row are dropped and that end stops: past a
-support the next span's wire bends away or the line turns, and clutter a peak test took
-does not follow a catenary, while a piece's curve that is only off past its end follows the
-wire once refitted with one round of it. "While the views keep finding them" means at no
+the vertical bows in plan) are dropped and that end stops: past a support the next span's
+wire bends away or the line turns, and clutter a peak test took does not follow a
+catenary. Within the stretch the other wires were measured along, where no support can be,
+that takes two such rounds in a row: a piece's curve that is only off past its end follows
+the wire once refitted with one round of it. "While the views keep finding them" means at no
 less than ``MIN_EXTEND_SHARE`` of the rate at which they find the wire along its confirmed
 stretch: a round whose end they find less often is dropped and that end stops (a field's
 rows along the line give chance agreements at a few places, and those do follow a curve,
@@ -116,7 +117,9 @@ MIN_TRACED_SHARE = 0.2
 
 # A round's points past an end that leave the wire's curve, continued, by more than this many
 # standard errors (its fit's and theirs) may not be the wire's: a support, with the next
-# span's wire bending away, or clutter the looser test took. Such a round is on probation:
+# span's wire bending away, or clutter the looser test took. They are dropped and that end
+# stops, except within the stretch the line's other wires were measured along (an extension
+# clear of their ends), where no support can be: there such a round is on probation, and
 # when the next round past that end, the curve refitted with it, leaves it too, that end
 # stops and the points of both are dropped (so are those of a last round on probation). A
 # curve fitted to a piece can be off past its end by more than its statistics say (pose
@@ -124,7 +127,8 @@ MIN_TRACED_SHARE = 0.2
 # standard errors off it (6.5 cm, the curve itself 4.5 cm off the true wire there) once its
 # points were measured more precisely. On the shared generator's single spans the true
 # extensions otherwise stay within 3.8 (one round of a shield piece on the area survey:
-# 7.1); on the real road flight (poles every ~65 m) the rounds past a pole reach 5-13.
+# 7.1); on the real road flight (poles every ~65 m) the rounds past a pole reach 5-13 (let
+# pass once there, a conductor ran 15 m on past where its neighbours end).
 MAX_BEND = 4.0
 
 # A wire's traced share is judged on at least this many places where the views would fix it
@@ -1270,6 +1274,15 @@ def trace_wires(
         [w.points(np.array(w.s_range))[:, :2] @ along for w in wires + context]
     )
     measured = (float(ends_along.min()), float(ends_along.max()))
+    # Per wire, how far along the line the other wires (context included) were measured.
+    pairs_along = ends_along.reshape(-1, 2)
+    others_reach = [
+        (
+            float(np.delete(pairs_along, k, axis=0).min(initial=np.inf)),
+            float(np.delete(pairs_along, k, axis=0).max(initial=-np.inf)),
+        )
+        for k in range(len(wires))
+    ]
     reach = measured
     if primitives is not None:
         # Taken where the matches run on for more than one round past the measured wires:
@@ -1432,17 +1445,24 @@ def trace_wires(
                     if bend <= MAX_BEND:
                         bent.pop((k, j), None)
                         continue
+                    # Only within the stretch the other wires were measured along (an
+                    # extension clear of their ends) is such a round let pass: there no
+                    # support can be, as the line's other wires run on past it.
+                    at = pts[mine][side][:, :2] @ along
+                    lo_k, hi_k = others_reach[k]
+                    amid = bool(np.all((at > lo_k + options.extend) & (at < hi_k - options.extend)))
+                    stops = (k, j) in bent or not amid
                     logger.debug(
                         "trace round %d, wire %d: an end's points leave the curve by %.1f "
                         "standard errors: %s",
                         round_,
                         w.wire_id,
                         bend,
-                        "stops" if (k, j) in bent else "on probation",
+                        "stops" if stops else "on probation",
                     )
-                    if (k, j) in bent:
+                    if stops:
                         drop |= side
-                        removed = np.r_[removed, bent.pop((k, j))]
+                        removed = np.r_[removed, bent.pop((k, j), np.zeros(0, np.int64))]
                     else:
                         leaving.append((j, side))
                 idx = np.r_[w.point_indices, base + np.flatnonzero(~drop)]
