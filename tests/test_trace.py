@@ -579,9 +579,9 @@ def test_an_end_whose_points_leave_the_curve_two_rounds_in_a_row_stops(
     continuation lay 4.5 standard errors off it), the second stops that end and the points
     of both go, as do those of a round let pass that no round follows (0.04: the next round
     finds too little). A round is let pass only where the line's other wires were measured
-    on past it (here a conductor along the whole span): no support can be there. At most the round that straddles the bend, whose far half still
-    keeps to the curve, stays. A wire that keeps to its curve (``rise`` 0) is traced on to
-    its support."""
+    on past it (here a conductor along the whole span): no support can be there. At most
+    the round that straddles the bend, whose far half still keeps to the curve, stays. A
+    wire that keeps to its curve (``rise`` 0) is traced on to its support."""
     truth = conductors[1]
     cut = 0.75 * truth.length_m
     s_past = np.arange(cut, truth.length_m, 0.05)
