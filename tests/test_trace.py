@@ -65,13 +65,14 @@ def _with_points(wires: list[FittedWire]) -> tuple[list[FittedWire], np.ndarray]
     return out, np.concatenate(pts)
 
 
-def _trace(scene, wires, pts, **kwargs):
-    """trace_wires with the verification's detector and the default options."""
+def _trace(scene, wires, pts, detector=None, **kwargs):
+    """trace_wires with the verification's detector (or ``detector``) and the default
+    options."""
     return trace_wires(
         scene,
         wires,
         pts,
-        crop_wire_mask(DetectOptions(), 25),
+        detector or crop_wire_mask(DetectOptions(), 25),
         _azimuth(wires[0]),
         TraceOptions(),
         WiresOptions(),
@@ -498,40 +499,11 @@ def test_an_end_the_views_find_at_few_places_stops(small_scene, conductors):
     s_gone = np.arange(cut, truth.length_m, 0.05)
     gone = truth.points(s_gone)
     dashes = np.mod(s_gone - cut, 3.0) < 1.0
-    base = crop_wire_mask(DetectOptions(), 25)
-
-    def dashed(view, image, direction, crop):
-        wm = base(view, image, direction, crop)
-        x0, y0 = crop[:2]
-        uv, _, inside = view.project(gone)
-        if not inside.any():
-            return wm
-        # The wire past the cut is not seen ...
-        near = np.zeros(wm.mask.shape, np.uint8)
-        cv2.polylines(near, [np.round(uv[inside] - [x0, y0]).astype(np.int32)], False, 1, 1)
-        hidden = cv2.distanceTransform(1 - near, cv2.DIST_L2, 5) < 4
-        response = np.where(hidden, 0.0, wm.response)
-        # ... but along the dashes, as strongly as the wire.
-        line = np.zeros(wm.mask.shape, np.uint8)
-        for k in np.flatnonzero(inside[:-1] & inside[1:] & dashes[:-1]):
-            a, b = np.round(uv[k : k + 2] - [x0, y0]).astype(np.int32)
-            cv2.line(line, tuple(a), tuple(b), 1, 1)
-        strong = float(np.percentile(np.abs(wm.response), 99.5))
-        response = np.where(line > 0, strong, response).astype(np.float32)
-        return dataclasses.replace(wm, response=response, mask=(wm.mask & ~hidden) | (line > 0))
-
+    # The wire past the cut is not seen, but along the dashes, as strongly as the wire.
+    dashed = _line_past(crop_wire_mask(DetectOptions(), 25), gone, gone, dashes)
     wires, pts = _with_points([_curve(truth, 0, 0.3, 0.6, 0.0)])
-    context = [_curve(conductors[3], 3, 0.0, 1.0, 0.0)]
-    out, traced = trace_wires(
-        small_scene,
-        wires,
-        pts,
-        dashed,
-        _azimuth(wires[0]),
-        TraceOptions(),
-        WiresOptions(),
-        tolerance_px=1.5,
-        context=context,
+    out, traced = _trace(
+        small_scene, wires, pts, dashed, context=[_curve(conductors[3], 3, 0.0, 1.0, 0.0)]
     )
 
     def along(p: np.ndarray) -> np.ndarray:
@@ -543,9 +515,10 @@ def test_an_end_the_views_find_at_few_places_stops(small_scene, conductors):
     assert np.mean(along(traced.pts_in_world) > cut + 1.0) < 0.02
 
 
-def _line_past(base, gone: np.ndarray, shown: np.ndarray):
+def _line_past(base, gone: np.ndarray, shown: np.ndarray, drawn: np.ndarray | None = None):
     """The detector, with the wire's points ``gone`` hidden and a line as strong as a wire
-    drawn through ``shown`` instead."""
+    drawn through ``shown`` instead (where ``drawn``: the segments from those points on)."""
+    drawn = np.ones(len(shown), bool) if drawn is None else drawn
 
     def mask(view, image, direction, crop):
         wm = base(view, image, direction, crop)
@@ -558,8 +531,9 @@ def _line_past(base, gone: np.ndarray, shown: np.ndarray):
         hidden = cv2.distanceTransform(1 - near, cv2.DIST_L2, 5) < 4
         uv, _, inside = view.project(shown)
         line = np.zeros(wm.mask.shape, np.uint8)
-        if inside.sum() > 1:
-            cv2.polylines(line, [np.round(uv[inside] - [x0, y0]).astype(np.int32)], False, 1, 1)
+        for k in np.flatnonzero(inside[:-1] & inside[1:] & drawn[:-1]):
+            a, b = np.round(uv[k : k + 2] - [x0, y0]).astype(np.int32)
+            cv2.line(line, tuple(a), tuple(b), 1, 1)
         strong = float(np.percentile(np.abs(wm.response), 99.5))
         response = np.where(hidden, 0.0, wm.response)
         response = np.where(line > 0, strong, response).astype(np.float32)
@@ -588,16 +562,8 @@ def test_an_end_whose_points_leave_the_curve_two_rounds_in_a_row_stops(
     shown = truth.points(s_past) + np.outer(rise * (s_past - cut), [0.0, 0.0, 1.0])
     detector = _line_past(crop_wire_mask(DetectOptions(), 25), truth.points(s_past), shown)
     wires, pts = _with_points([_curve(truth, 0, 0.3, 0.6, 0.0)])
-    out, traced = trace_wires(
-        small_scene,
-        wires,
-        pts,
-        detector,
-        _azimuth(wires[0]),
-        TraceOptions(),
-        WiresOptions(),
-        tolerance_px=1.5,
-        context=[_curve(conductors[3], 3, 0.0, 1.0, 0.0)],
+    out, traced = _trace(
+        small_scene, wires, pts, detector, context=[_curve(conductors[3], 3, 0.0, 1.0, 0.0)]
     )
 
     def along(p: np.ndarray) -> np.ndarray:
