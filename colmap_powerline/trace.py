@@ -31,16 +31,15 @@ and the image noise measured on the redundant points themselves — is within
 kept where it lies on the wire's curve within their joint error, wherever the curve is
 known that well: the curve is the check (:func:`_checked_by_curve`). Between a wire's
 measured ends the curve also fixes what views of one strip, whose rays meet at a narrow
-angle, leave loose along their rays: there the views and the curve are combined. Views
-along the wires from one strip give nearly the same plane and cannot fix a point: only their
-combination with views offset across the wire does.
+angle, leave loose along their rays: there the views and the curve are combined. Views along the wires
+from one strip give nearly the same plane and cannot fix a point: only their combination
+with views offset across the wire does.
 
 Each view's offset on each wire (its pose error, how the wire looks there) is estimated from
 the places the other views check and removed. On a wire the views find (its traced share),
-a response peak above the detector's contrast threshold counts as the wire centre, alone
-or as the median of its and its neighbours' along the curve over a few template lengths
-(the curve is the evidence the detector's length filter gives elsewhere); on the others
-only the detector's wire pixels do. The wires are refitted to their measured and traced points, and
+a response peak above the detector's contrast threshold counts as the wire centre (the curve
+is the evidence the detector's length filter gives elsewhere); on the others only the
+detector's wire pixels do. The wires are refitted to their measured and traced points, and
 traced again past their new ends, ``extend`` at a time, while the views keep finding them
 there, no farther along the line than the measured wires reach. A round's points past an end
 that leave the curve continued by more than ``MAX_BEND`` standard errors (the fit's own,
@@ -48,13 +47,10 @@ from its residuals, and the points'; across the wire also how far its vertical p
 continued as far, leaves its own confirmed points at its ends: a wire the wind blew out of
 the vertical bows in plan) are dropped and that end stops: past a support the next span's
 wire bends away or the line turns, and clutter a peak test took does not follow a
-catenary. Within the stretch the other wires were measured along, where no support can be,
-that takes two such rounds in a row: a piece's curve that is only off past its end follows
-the wire once refitted with one round of it. "While the views keep finding them" means at no
-less than ``MIN_EXTEND_SHARE`` of the rate at which they find the wire along its confirmed
-stretch: a round whose end they find less often is dropped and that end stops (a field's
-rows along the line give chance agreements at a few places, and those do follow a curve,
-refitted to them).
+catenary. "While the views keep finding them" means at no less than ``MIN_EXTEND_SHARE``
+of the rate at which they find the wire along its confirmed stretch: a round whose end
+they find less often is dropped and that end stops (a field's rows along the line give
+chance agreements at a few places, and those do follow a curve, refitted to them).
 """
 
 from __future__ import annotations
@@ -71,7 +67,6 @@ from typing import ClassVar
 import cv2
 import numpy as np
 import numpy.typing as npt
-from scipy.ndimage import median_filter
 from scipy.spatial import cKDTree
 from scipy.stats import chi2
 
@@ -116,19 +111,11 @@ MIN_BIAS_PLACES = 20
 MIN_TRACED_SHARE = 0.2
 
 # A round's points past an end that leave the wire's curve, continued, by more than this many
-# standard errors (its fit's and theirs) may not be the wire's: a support, with the next
-# span's wire bending away, or clutter the looser test took. They are dropped and that end
-# stops, except within the stretch the line's other wires were measured along (an extension
-# clear of their ends), where no support can be: there such a round is on probation, and
-# when the next round past that end, the curve refitted with it, leaves it too, that end
-# stops and the points of both are dropped (so are those of a last round on probation). A
-# curve fitted to a piece can be off past its end by more than its statistics say (pose
-# errors shared along it): on the shared cross seed 6 a piece's true continuation lay 4.5
-# standard errors off it (6.5 cm, the curve itself 4.5 cm off the true wire there) once its
-# points were measured more precisely. On the shared generator's single spans the true
-# extensions otherwise stay within 3.8 (one round of a shield piece on the area survey:
-# 7.1); on the real road flight (poles every ~65 m) the rounds past a pole reach 5-13 (let
-# pass once there, a conductor ran 15 m on past where its neighbours end).
+# standard errors (its fit's and theirs) are not the wire's: a support, with the next span's
+# wire bending away, or clutter the looser test took. They are dropped and that end stops.
+# On the shared generator's single spans the true extensions stay within 3.8 (one round of a
+# shield piece on the area survey: 7.1); on the real road flight (poles every ~65 m) the
+# rounds past a pole reach 5-13.
 MAX_BEND = 4.0
 
 # A wire's traced share is judged on at least this many places where the views would fix it
@@ -377,86 +364,6 @@ def _joint_offsets(
     return out, amplitude
 
 
-# The loose test also takes, at each place, the median of its and its neighbours' responses
-# across the wire along the curve, over this many line templates: a wire too faint for one
-# template to stand out from the ground's texture stands out from the median, whose noise
-# falls with the root of the independent lengths taken (on the shared generator's faint
-# stretches, over yellow grass and bare soil, the true centre passes at 50-81 % of the places
-# with one 15 px template and at 63-97 % over 75 px). Within that length the curve predicts
-# the wire to within a pixel once each view's offset is removed, so the median stays on it;
-# a median, it is not carried by a strong line under a third of that length.
-INTEGRATED_TEMPLATES = 3
-# The noise of a median of n normal samples over that of their mean: sqrt(pi / 2).
-MEDIAN_NOISE = float(np.sqrt(np.pi / 2))
-
-
-def _integrated_offsets(
-    response: F32,
-    threshold: F32,
-    uv: F64,
-    normal: F64,
-    wire: I64,
-    reach_px: float,
-    template_px: int,
-) -> F64:
-    """(N,) each place's offset (px, along ``normal``) to the wire centre where the median
-    of the signed response across the wire over ``INTEGRATED_TEMPLATES`` template lengths
-    of its wire's places in this view (in place order: along the curve) stands above the
-    contrast threshold there, scaled to the noise of that median (``MEDIAN_NOISE`` over the
-    root of the independent template lengths: a length S of a template L long holds 1 + S /
-    L of them), and the place's own
-    response, of the median's sign, peaks within a pixel of the median's peak above that same
-    level: the offset of that peak, NaN elsewhere."""
-    out = np.full(len(uv), np.nan)
-    if len(uv) == 0:
-        return out
-    # Half-pixel steps: at whole ones a thin line's main lobe can sample below its side
-    # lobe, of the other sign, and the median would take the lobe for the wire.
-    steps = np.arange(-np.ceil(reach_px), np.ceil(reach_px) + 0.25, 0.5)
-    n = len(steps)
-    prof = samples_across(response, uv, normal, steps)
-    thr = samples_across(threshold, uv, normal, np.array([0.0]))[:, 0]
-    length_px = INTEGRATED_TEMPLATES * template_px
-    for k in np.unique(wire):
-        m = np.flatnonzero(wire == k)
-        if len(m) < 2:
-            continue
-        # The median over the places within the length (their spacing in this view): a
-        # strong line under a third of it (a dash of a field's rows crossing under the
-        # curve) does not carry the places beside it, as it would carry a mean.
-        spacing = float(np.median(np.linalg.norm(np.diff(uv[m], axis=0), axis=1)))
-        size = 2 * int(round(length_px / 2 / max(spacing, 1e-6))) + 1
-        total = median_filter(prof[m], size=(size, 1), mode="nearest")
-        independent = 1.0 + (size - 1) * spacing / template_px
-        limit = median_filter(thr[m], size=size, mode="nearest") * (
-            MEDIAN_NOISE / np.sqrt(independent)
-        )
-        rows = np.arange(len(m))
-        j = np.argmax(np.abs(total), axis=1)
-        # The wire's sign here (its side lobes, of the other sign, are not its centre).
-        sign = np.sign(total[rows, j])[:, None]
-        signed = total * sign
-        j = np.argmax(signed, axis=1)
-        mid = signed[rows, j]
-        # The place's own centre: the peak of its own response, of the median's sign, within
-        # a pixel of the median's (that says the wire is there; each place measures where, so
-        # that neighbouring places' errors stay as independent as elsewhere), standing
-        # above that level too: a stretch whose median stands out only from a strong line a
-        # little way along (a dash of a field's rows under the curve) is not the wire.
-        own = prof[m] * sign
-        near = np.clip(j[:, None] + np.arange(-2, 3), 0, n - 1)
-        best = near[rows, np.argmax(own[rows[:, None], near], axis=1)]
-        bc = np.clip(best, 1, n - 2)
-        o_left, o_mid, o_right = own[rows, bc - 1], own[rows, bc], own[rows, bc + 1]
-        o_denom = o_left - 2 * o_mid + o_right
-        with np.errstate(divide="ignore", invalid="ignore"):
-            o_vertex = np.where(o_denom < 0, 0.5 * (o_left - o_right) / o_denom, 0.0)
-        peak = (best > 0) & (best < n - 1) & (o_mid >= o_left) & (o_mid >= o_right)
-        ok = (j > 0) & (j < n - 1) & (mid > limit) & peak & (o_mid > limit)
-        out[m[ok]] = steps[bc[ok]] + 0.5 * np.clip(o_vertex[ok], -0.5, 0.5)
-    return out
-
-
 def _observe(
     view: SceneImage,
     places: _Places,
@@ -465,7 +372,6 @@ def _observe(
     reach_px: float,
     margin_px: int,
     detect: DetectOptions,
-    template_px: int = 0,
 ) -> tuple[I64, F64, F64, F64, npt.NDArray[np.bool_]] | None:
     """One view's observations of the places it sees (not where another wire passes too
     near to tell, :func:`_beside_others`): (place,
@@ -545,23 +451,6 @@ def _observe(
     strong = cv2.dilate(strong.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
     loose = found.copy()
     loose[np.flatnonzero(found)[~strong[cy, cx]]] = False
-    loose_offset = offset.copy()
-    if template_px:
-        # A lone place no single template finds may be found by the median along the curve.
-        summed = _integrated_offsets(
-            wm.response,
-            threshold,
-            local[lone],
-            normal[lone],
-            places.wire[idx[lone]],
-            reach_px,
-            template_px,
-        )
-        at = np.full(len(idx), np.nan)
-        at[lone] = summed
-        extra = np.isfinite(at) & ~loose
-        loose |= extra
-        loose_offset[extra] = at[extra]
     if joint.any():
         # Beside another wire, its pixels and response spill over a centre the fit put
         # there: the line must stand above the threshold on its own (the other's removed).
@@ -576,7 +465,7 @@ def _observe(
         idx,
         rows,
         np.where(strict, offset, np.nan),
-        np.where(loose, loose_offset, np.nan),
+        np.where(loose, offset, np.nan),
         clear,
     )
 
@@ -680,7 +569,6 @@ def _look(
     num_threads: int,
     margin_px: int,
     detect: DetectOptions,
-    template_px: int = 0,
 ) -> tuple[_Observations, list[Path]]:
     """Every view's observations of the places (decoding each image that sees one)."""
     parts: list[tuple[int, tuple[I64, F64, F64, F64, npt.NDArray[np.bool_]]]] = []
@@ -695,7 +583,6 @@ def _look(
             reach_px,
             margin_px,
             detect,
-            template_px,
         )
 
     with ThreadPoolExecutor(max_workers=num_threads) as pool:
@@ -1264,9 +1151,6 @@ def trace_wires(
     base_share = np.full(len(wires), np.nan)
     # (wire, end: 0 low, 1 high) → the points of a round on probation at that end.
     probation: dict[tuple[int, int], I64] = {}
-    # (wire, end) → the points of a round past that end that left the curve continued: on
-    # probation until the next round there.
-    bent: dict[tuple[int, int], I64] = {}
     bias: dict[tuple[int, int], float] = {}
     along, _ = plan_axes(azimuth_deg)
     # How far along the line the measured wires reach.
@@ -1274,15 +1158,6 @@ def trace_wires(
         [w.points(np.array(w.s_range))[:, :2] @ along for w in wires + context]
     )
     measured = (float(ends_along.min()), float(ends_along.max()))
-    # Per wire, how far along the line the other wires (context included) were measured.
-    pairs_along = ends_along.reshape(-1, 2)
-    others_reach = [
-        (
-            float(np.delete(pairs_along, k, axis=0).min(initial=np.inf)),
-            float(np.delete(pairs_along, k, axis=0).max(initial=-np.inf)),
-        )
-        for k in range(len(wires))
-    ]
     reach = measured
     if primitives is not None:
         # Taken where the matches run on for more than one round past the measured wires:
@@ -1331,15 +1206,7 @@ def trace_wires(
         if places is None:
             break
         obs, dec = _look(
-            scene,
-            places,
-            wire_mask,
-            azimuth_deg,
-            options.reach_px,
-            num_threads,
-            margin_px,
-            detect,
-            template_length_px,
+            scene, places, wire_mask, azimuth_deg, options.reach_px, num_threads, margin_px, detect
         )
         decoded += dec
         # Past the ends, on the wires the views find, a peak that stands out will do too
@@ -1435,42 +1302,18 @@ def trace_wires(
                 s_new = w.plane_coords(pts[mine])[0]
                 own = all_pts[w.point_indices]
                 drop = np.zeros(len(mine), bool)
-                leaving: list[tuple[int, npt.NDArray[np.bool_]]] = []
-                for j, side in enumerate((s_new < w.s_range[0], s_new > w.s_range[1])):
-                    if side.sum() < corr:
-                        continue
-                    bend = _leaves_curve(
-                        w, own, pts[mine][side], sigma[mine][side], corr, model_error[k]
-                    )
-                    if bend <= MAX_BEND:
-                        bent.pop((k, j), None)
-                        continue
-                    # Only within the stretch the other wires were measured along (an
-                    # extension clear of their ends) is such a round let pass: there no
-                    # support can be, as the line's other wires run on past it.
-                    at = pts[mine][side][:, :2] @ along
-                    lo_k, hi_k = others_reach[k]
-                    amid = bool(np.all((at > lo_k + options.extend) & (at < hi_k - options.extend)))
-                    stops = (k, j) in bent or not amid
-                    logger.debug(
-                        "trace round %d, wire %d: an end's points leave the curve by %.1f "
-                        "standard errors: %s",
-                        round_,
-                        w.wire_id,
-                        bend,
-                        "stops" if stops else "on probation",
-                    )
-                    if stops:
+                for side in (s_new < w.s_range[0], s_new > w.s_range[1]):
+                    if side.sum() >= corr and (
+                        _leaves_curve(
+                            w, own, pts[mine][side], sigma[mine][side], corr, model_error[k]
+                        )
+                        > MAX_BEND
+                    ):
                         drop |= side
-                        removed = np.r_[removed, bent.pop((k, j), np.zeros(0, np.int64))]
-                    else:
-                        leaving.append((j, side))
                 idx = np.r_[w.point_indices, base + np.flatnonzero(~drop)]
                 idx = idx[~np.isin(idx, removed)]
                 for j, side in weak:
                     probation[k, j] = np.intersect1d(base + np.flatnonzero(side[mine]), idx)
-                for j, side in leaving:
-                    bent[k, j] = np.intersect1d(base + np.flatnonzero(side), idx)
             fit = refit(w, all_pts, idx, along, wires_options)
             lo, hi = fit.s_range
             # An end goes on while the views found the wire over most of the last extension,
@@ -1508,13 +1351,9 @@ def trace_wires(
         ranges = new_ranges
         if options.extend == 0:
             break
-    # A last round on probation is not followed by one that finds the wire (or keeps to its
-    # curve): its points go.
-    pending = {**probation}
-    for key, v in bent.items():
-        pending[key] = np.r_[pending.get(key, np.zeros(0, np.int64)), v]
-    for k in sorted({k for k, _ in pending}):
-        gone = np.concatenate([v for (i, _), v in pending.items() if i == k])
+    # A last round on probation is not followed by one that finds the wire: its points go.
+    for k in sorted({k for k, _ in probation}):
+        gone = np.concatenate([v for (i, _), v in probation.items() if i == k])
         w = wires[k]
         wires[k] = refit(
             w, all_pts, w.point_indices[~np.isin(w.point_indices, gone)], along, wires_options
