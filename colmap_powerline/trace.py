@@ -31,9 +31,9 @@ and the image noise measured on the redundant points themselves — is within
 kept where it lies on the wire's curve within their joint error, wherever the curve is
 known that well: the curve is the check (:func:`_checked_by_curve`). Between a wire's
 measured ends the curve also fixes what views of one strip, whose rays meet at a narrow
-angle, leave loose along their rays: there the views and the curve are combined. Views along the wires
-from one strip give nearly the same plane and cannot fix a point: only their combination
-with views offset across the wire does.
+angle, leave loose along their rays: there the views and the curve are combined. Views
+along the wires from one strip give nearly the same plane and cannot fix a point: only their
+combination with views offset across the wire does.
 
 Each view's offset on each wire (its pose error, how the wire looks there) is estimated from
 the places the other views check and removed. On a wire the views find (its traced share),
