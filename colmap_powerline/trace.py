@@ -691,7 +691,7 @@ def _checked_by_curve(
     all_pts: F64,
     corr: float,
     model_error: Sequence[float] | None = None,
-    loose_sigma: float = 0.0,
+    one_way_sigma: float = 0.0,
 ) -> tuple[npt.NDArray[np.bool_], F64, F64]:
     """The places the wire's curve checks, and their offsets and precision (the solution's,
     or, where the curve is what fixes them, the two combined).
@@ -708,7 +708,7 @@ def _checked_by_curve(
     of one strip whose rays meet at a narrow angle fix a point across their rays well and
     along them poorly (on the shared area survey, 7 cm where a point must be known to 5 cm,
     with the curve known to 2 mm there). Such a place (its views fix it to ``max_sigma`` in
-    one direction, and to ``loose_sigma`` in the other: the test must still be able to tell
+    one direction, and to ``one_way_sigma`` in the other: the test must still be able to tell
     the wire from another one beside it, which the views see within their reach where their
     rays are near parallel: a wire 6 m above the curve, from two views nearly overhead) is
     kept where it passes the same test and the views and the curve together fix it to
@@ -718,10 +718,10 @@ def _checked_by_curve(
     solved = np.isfinite(sol.x[:, 0]) & (places.wire < places.n_traced)
     x_out, sigma_out = sol.x.copy(), sigma.copy()
     two = solved & (sol.n_views == 2) & (sigma <= max_sigma)
-    loose = solved & (sol.n_views >= 2) & (sigma > max_sigma) & (sigma <= loose_sigma)
+    one_way = solved & (sol.n_views >= 2) & (sigma > max_sigma) & (sigma <= one_way_sigma)
     out = np.zeros(len(two), bool)
-    for k in np.unique(places.wire[two | loose]):
-        m = np.flatnonzero((two | loose) & (places.wire == k))
+    for k in np.unique(places.wire[two | one_way]):
+        m = np.flatnonzero((two | one_way) & (places.wire == k))
         w = wires[k]
         s = w.plane_coords(places.pts[m])[0]
         sig_a, sig_z = _prediction_sigma(w, all_pts[w.point_indices], s, corr)
@@ -736,7 +736,7 @@ def _checked_by_curve(
         ok = (np.einsum("ni,nij,nj->n", x, np.linalg.inv(cov), x) <= CURVE_CHI2) & (
             np.hypot(sig_a, sig_z) <= max_sigma
         )
-        weak = loose[m]
+        weak = one_way[m]
         if weak.any():
             # The views' best-fixed direction within max_sigma; the curve, known between
             # the ends, fixes the rest: the two combined (the curve's offset is 0).
@@ -1055,8 +1055,9 @@ def support_reach(
         if above[at_end] or len(hits) == 0:
             out.append(None)
             continue
-        rest = above[walk[hits[0] :]]
-        run = walk[hits[0] : hits[0] + (len(rest) if rest.all() else int(np.argmin(rest)))]
+        run = walk[hits[0] :]
+        gap = np.flatnonzero(~above[run])
+        run = run[: gap[0]] if len(gap) else run
         out.append(float(np.average(centre[run], weights=count[run])))
     return out[0], out[1]
 

@@ -334,6 +334,14 @@ def test_a_short_straight_piece_is_continued_along_its_own_curve(seed):
     assert _leaves_curve(wire, pts, same + [0, 0, 0.5], sigma, 10.0) > MAX_BEND
 
 
+def _two_views(m: int, x: list[float], normal: np.ndarray) -> _Solution:
+    """``m`` places two views fix at offsets ``x`` across the curve, normal matrix ``normal``
+    (px² per model unit², across then up)."""
+    n2 = np.full(m, 2, np.int32)
+    normals = np.tile(normal, (m, 1, 1))
+    return _Solution(np.tile(x, (m, 1)), np.zeros(m), n2, normals, np.zeros(m), n2, normals)
+
+
 def test_two_views_are_checked_by_the_curve_where_it_is_known():
     """A place only two views fix has no check of its own: on a wire measured along 10 m it
     is kept where its point lies on the curve within the joint error (1 cm off: kept; 20 cm
@@ -347,13 +355,10 @@ def test_two_views_are_checked_by_the_curve_where_it_is_known():
     far = _places([wire], [[(19.0, 20.0)]], np.array([0.5]), [])
     assert places is not None and far is not None
     m = len(places.pts)
-    # Two views 2 cm/px, 0.44 px noise: a point known to about 1 cm.
-    normal = np.tile(np.eye(2) * 2 * 50.0**2, (m, 1, 1))
 
     def solution(offset: float) -> _Solution:
-        x = np.tile([offset, 0.0], (m, 1))
-        n2 = np.full(m, 2, np.int32)
-        return _Solution(x, np.zeros(m), n2, normal, np.zeros(m), n2, normal)
+        # Two views 2 cm/px, 0.44 px noise: a point known to about 1 cm.
+        return _two_views(m, [offset, 0.0], np.eye(2) * 2 * 50.0**2)
 
     sigma = np.full(m, 0.01)
     args = (0.44, 0.05)
@@ -383,32 +388,21 @@ def test_the_curve_fixes_what_two_views_of_one_strip_leave_loose_between_the_end
     assert inside is not None and past is not None
     sigma_px, max_sigma = 0.44, 0.05
 
-    def solution(m: int, x: list[float], sd: tuple[float, float]) -> tuple[_Solution, np.ndarray]:
-        normal = np.tile(np.diag([(sigma_px / sd[0]) ** 2, (sigma_px / sd[1]) ** 2]), (m, 1, 1))
-        n2 = np.full(m, 2, np.int32)
-        sol = _Solution(np.tile(x, (m, 1)), np.zeros(m), n2, normal, np.zeros(m), n2, normal)
-        return sol, np.full(m, max(sd))
+    def check(x: list[float], sd: tuple[float, float], at=inside):
+        """The curve check of places whose views fix them to ``sd`` (across, up) at ``x``."""
+        sol = _two_views(
+            len(at.pts), x, np.diag([(sigma_px / sd[0]) ** 2, (sigma_px / sd[1]) ** 2])
+        )
+        sigma = np.full(len(at.pts), max(sd))
+        return _checked_by_curve(sol, sigma, sigma_px, max_sigma, at, [wire], pts, 10.0, None, 0.12)
 
-    m = len(inside.pts)
-    sol, sigma = solution(m, [0.005, 0.08], (0.01, 0.10))
-    kept, x, sig = _checked_by_curve(
-        sol, sigma, sigma_px, max_sigma, inside, [wire], pts, 10.0, None, 0.12
-    )
+    kept, x, sig = check([0.005, 0.08], (0.01, 0.10))
     assert kept.all()
     assert np.all(np.abs(x[:, 1]) < 0.01) and np.all((x[:, 0] >= 0) & (x[:, 0] <= 0.005))
     assert np.all(sig < max_sigma / 2)
-    sol, sigma = solution(m, [0.2, 0.0], (0.01, 0.10))
-    assert not _checked_by_curve(
-        sol, sigma, sigma_px, max_sigma, inside, [wire], pts, 10.0, None, 0.12
-    )[0].any()
-    sol, sigma = solution(m, [0.0, 0.0], (0.08, 0.10))
-    assert not _checked_by_curve(
-        sol, sigma, sigma_px, max_sigma, inside, [wire], pts, 10.0, None, 0.12
-    )[0].any()
-    sol, sigma = solution(len(past.pts), [0.005, 0.0], (0.01, 0.10))
-    assert not _checked_by_curve(
-        sol, sigma, sigma_px, max_sigma, past, [wire], pts, 10.0, None, 0.12
-    )[0].any()
+    assert not check([0.2, 0.0], (0.01, 0.10))[0].any()
+    assert not check([0.0, 0.0], (0.08, 0.10))[0].any()
+    assert not check([0.005, 0.0], (0.01, 0.10), at=past)[0].any()
 
 
 def test_matches_continuing_a_wire_take_tracing_farther_along_the_line():
