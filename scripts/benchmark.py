@@ -99,6 +99,7 @@ def _run_one(
 
     from colmap_powerline.evaluate import distance_to_polyline, evaluate
     from colmap_powerline.pipeline import ReconstructionOptions, reconstruct
+    from colmap_powerline.scene import load_scene
     from colmap_powerline.synthetic import load_true_wires
 
     logging.basicConfig(
@@ -119,7 +120,9 @@ def _run_one(
     peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     decode_s = decode_floor(result.decoded)
     truth = load_true_wires(span_dir / "truth" / "wires.json")
-    ev = evaluate(result.verified.pts_in_world[result.labels >= 0], result.wires, truth)
+    # Where the flight measures each wire, from the true poses: the targets are held there.
+    views = load_scene(span_dir / "sparse_gt", span_dir / "images", check_images=False).images
+    ev = evaluate(result.verified.pts_in_world[result.labels >= 0], result.wires, truth, views)
     if sfm_info is not None:
         # Absolute error: the same points carried into the GPS-georeferenced frame.
         m = np.array(sfm_info["georef_from_aligned"])

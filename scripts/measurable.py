@@ -30,14 +30,13 @@ import open3d as o3d
 from scipy.spatial import cKDTree
 
 from colmap_powerline.detect import DetectOptions
+from colmap_powerline.evaluate import measurable_points
 from colmap_powerline.scene import load_scene
-from colmap_powerline.trace import image_normals
 from colmap_powerline.wires import WiresOptions
 
 STEP = 0.1  # m between samples along a true wire
 DENSE_STEP = 0.02  # m between the samples of the other wires (well under a pixel)
 TOLERANCE = 0.10  # m, completeness tolerance of the shared scorer
-MARGIN_PX = 20.0
 
 
 def _samples(polyline: np.ndarray, step: float = STEP) -> tuple[np.ndarray, np.ndarray]:
@@ -88,40 +87,9 @@ def main(argv: list[str] | None = None) -> int:
     for i, w in enumerate(truth):
         pts, tangent = _samples(lines[i])
         others = np.concatenate([d for j, d in enumerate(dense) if j != i])
-        horizontal = np.c_[tangent[:, 1], -tangent[:, 0], np.zeros(len(pts))]
-        horizontal /= np.linalg.norm(horizontal, axis=1, keepdims=True)
-        up = np.cross(horizontal, tangent)
-        across = np.stack([horizontal, up], axis=1)  # (n, 2, 3)
-        normal = np.zeros((len(pts), 2, 2))
-        seen = np.zeros(len(pts), np.int64)
-        for view in scene.images:
-            uv, _, inside = view.project(pts)
-            inside &= (
-                (uv[:, 0] > MARGIN_PX)
-                & (uv[:, 1] > MARGIN_PX)
-                & (uv[:, 0] < view.width - MARGIN_PX)
-                & (uv[:, 1] < view.height - MARGIN_PX)
-            )
-            if inside.any():
-                # Hidden here: another wire's image is too near to tell the two apart.
-                uvo, _, ino = view.project(others)
-                if ino.any():
-                    d = cKDTree(uvo[ino]).query(uv[inside], distance_upper_bound=args.hidden_px)[0]
-                    inside[np.flatnonzero(inside)[d < args.hidden_px]] = False
-            idx = np.flatnonzero(inside)
-            if len(idx) == 0:
-                continue
-            _, row = image_normals(view, pts[idx], tangent[idx])
-            a = np.einsum("nj,nkj->nk", row, across[idx])
-            normal[idx] += a[:, :, None] * a[:, None, :]
-            seen[idx] += 1
-        sigma = np.full(len(pts), np.inf)
-        ok = np.flatnonzero(seen >= 3)
-        if len(ok):
-            with np.errstate(all="ignore"):
-                cov = np.linalg.pinv(normal[ok]) * args.sigma_px**2
-            sigma[ok] = np.sqrt(np.abs(np.linalg.eigvalsh(cov)[:, -1]))
-        measurable = sigma <= max_sigma
+        measurable = measurable_points(
+            scene.images, pts, tangent, others, args.sigma_px, args.hidden_px, max_sigma
+        )
         hit = (
             tree.query(pts, distance_upper_bound=TOLERANCE)[0] <= TOLERANCE
             if tree is not None

@@ -2,15 +2,25 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
+from pathlib import Path
 
 import numpy as np
 import open3d as o3d
+import pycolmap
 import pytest
 
-from colmap_powerline.evaluate import distance_to_polyline, evaluate
+from colmap_powerline.evaluate import (
+    Evaluation,
+    WireScore,
+    distance_to_polyline,
+    evaluate,
+    measurable_points,
+)
 from colmap_powerline.export import export_results, read_point_cloud
 from colmap_powerline.files import write_atomic
+from colmap_powerline.scene import SceneImage
 from colmap_powerline.synthetic import SyntheticSpanOptions, build_span
 from colmap_powerline.wires import split_wires
 
@@ -92,3 +102,56 @@ def test_atomic_write_leaves_nothing_half_written(tmp_path):
         write_atomic(target, failing)
     assert target.read_text() == "old"
     assert [p.name for p in tmp_path.iterdir()] == ["a.json"]
+
+
+def _nadir(k: int, x: float, y: float) -> SceneImage:
+    """A 2000 × 1500 px nadir view 50 m up at (x, y), f = 1000 px."""
+    camera = pycolmap.Camera(
+        model="PINHOLE", width=2000, height=1500, params=[1000, 1000, 1000, 750], camera_id=1
+    )
+    rot = np.diag([1.0, -1.0, -1.0])
+    return SceneImage(k, f"v{k}.jpg", Path(f"v{k}.jpg"), camera, rot, -rot @ [x, y, 50.0])
+
+
+def test_views_of_one_strip_along_a_wire_do_not_measure_it_and_a_second_strip_does():
+    # A straight wire along x, 20 m up; views 50 m up every 10 m along it.
+    pts = np.c_[np.linspace(-10, 10, 21), np.zeros(21), np.full(21, 20.0)]
+    tangent = np.tile([1.0, 0.0, 0.0], (21, 1))
+    none = np.zeros((0, 3))
+    over = [_nadir(k, x, 0.0) for k, x in enumerate(range(-20, 21, 10))]
+    beside = [_nadir(10 + k, x, 12.0) for k, x in enumerate(range(-20, 21, 10))]
+    # One strip right over the wire: every ray lies in its vertical plane, nothing fixes
+    # the height.
+    assert not measurable_points(over, pts, tangent, none).any()
+    # One strip beside it fixes only the plane through the strip and the wire.
+    assert not measurable_points(beside, pts, tangent, none).any()
+    assert measurable_points(over + beside, pts, tangent, none).all()
+    # Fewer than three views: not measurable, however well they cross.
+    assert not measurable_points(over[2:3] + beside[2:3], pts, tangent, none).any()
+    # Another wire's image within the hidden distance takes the views it hides.
+    other = pts + [0.0, 0.001, 0.0]
+    assert not measurable_points(over + beside, pts, tangent, other, hidden_px=3.0).any()
+
+
+def test_the_targets_hold_on_the_wires_the_flight_measures():
+    def score(k: int, kind: str, complete: float, measurable: float | None) -> WireScore:
+        return WireScore(
+            k, kind, complete, complete >= 0.5, 100, 0.01, 0.015, 0.01, 0.01,
+            measurable, None if measurable is None or complete == 0 else complete,
+        )  # fmt: skip
+
+    seen = [score(k, "conductor", 1.0, 1.0) for k in range(6)]
+    unseen = [score(6, "shield", 0.0, 0.0), score(7, "shield", 0.0, 0.1)]
+    ev = Evaluation(seen + unseen, 0, 0.0, 1000, 0.02)
+    assert all(ev.meets_targets().values())
+    assert "wire 6 (shield, 0 %), wire 7 (shield, 10 %)" in ev.summary_table()
+    # Measured by the flight and missed: missed.
+    ev = Evaluation(seen + [score(6, "shield", 0.0, 0.9)], 0, 0.0, 1000, 0.02)
+    targets = ev.meets_targets()
+    assert not targets["all wires found"] and not targets["completeness ≥ 98 %"]
+    # Without the views (measurability not judged) every wire counts.
+    ev = Evaluation(
+        [dataclasses.replace(w, measurable=None) for w in seen + unseen], 0, 0.0, 1000, 0.02
+    )
+    assert not ev.meets_targets()["all wires found"]
+    assert not Evaluation(seen, 0, 0.0, 1000, 0.031).meets_targets()["median ≤ 3 cm"]
