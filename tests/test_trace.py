@@ -11,7 +11,7 @@ import cv2
 import numpy as np
 import pytest
 
-from colmap_powerline.detect import DetectOptions, line_response
+from colmap_powerline.detect import DetectOptions, contrast_threshold, line_response
 from colmap_powerline.evaluate import distance_to_polyline
 from colmap_powerline.pipeline import crop_wire_mask
 from colmap_powerline.synthetic import TrueWire, load_true_wires
@@ -21,6 +21,7 @@ from colmap_powerline.trace import (
     _beside_others,
     _checked_by_curve,
     _continuation_error,
+    _integrated_offsets,
     _joint_offsets,
     _leaves_curve,
     _line_profile,
@@ -731,3 +732,97 @@ def test_a_view_resolving_a_wire_beside_another_counts_among_those_fixing_it(nad
         assert clear[beside].mean() > 0.9
     else:
         assert not clear[beside].any()
+
+
+def _faint_line(amplitude: float, seed: int, dashed: bool = False):
+    """A 1 px line along x (row 100) over grey noise of σ 6 (texture), its template
+    response (25 px) and contrast threshold, and places every 2.5 px along it 0.7 px off."""
+    rng = np.random.default_rng(seed)
+    gray = rng.normal(100.0, 6.0, (200, 1200))
+    x = np.arange(1200)
+    on = (x % 120 < 40) if dashed else np.ones(1200, bool)
+    gray[100, on] += amplitude
+    options = DetectOptions(template_length_px=25)
+    response = line_response(gray.astype(np.float32), 0.0, options)
+    threshold = contrast_threshold(np.abs(response), options)
+    uv = np.c_[np.arange(50.0, 1150.0, 2.5), np.full(440, 100.5 + 0.7)]
+    return response, threshold, uv, np.tile([0.0, 1.0], (len(uv), 1))
+
+
+def test_the_median_along_the_curve_finds_a_wire_too_faint_for_one_template():
+    """A line too faint for one 25 px template to stand out from the texture at many places
+    stands out from the median over three template lengths along the curve: with it, the
+    loose test finds the line at more places, each at its own peak (within a pixel of the
+    line). On texture alone it adds few chance finds (its test scales with the median's
+    noise), and along a dashed line (a field's rows crossing under the curve) it finds the
+    dashes and adds few finds in the gaps between them: a median is not carried by a strong
+    line under a third of its length."""
+    _, _, uv, normal = _faint_line(0.0, 0)
+    truth = -0.7
+    wire = np.zeros(len(uv), np.int64)
+
+    def loose(response: np.ndarray, threshold: np.ndarray, at: np.ndarray) -> np.ndarray:
+        one = _wire_offsets(response, at, normal, 3.0)
+        centre = np.floor(at + np.nan_to_num(one)[:, None] * normal).astype(int)
+        passes = np.isfinite(one) & (np.abs(response) > threshold)[centre[:, 1], centre[:, 0]]
+        return np.where(passes, one, np.nan)
+
+    found_one, found_both, chance_one, chance_both = [], [], [], []
+    for seed in range(4):
+        response, threshold, _, _ = _faint_line(3.0, seed)
+        one = loose(response, threshold, uv)
+        summed = _integrated_offsets(response, threshold, uv, normal, wire, 3.0, 25)
+        right_one = np.abs(one - truth) < 1.0
+        found_one.append(np.mean(right_one))
+        found_both.append(np.mean(right_one | (np.abs(summed - truth) < 1.0)))
+        assert np.mean(np.abs(summed[np.isfinite(summed)] - truth) < 1.0) > 0.9
+        off = uv + [0.0, 40.0]  # texture alone: a curve 40 px off the line
+        one = loose(response, threshold, off)
+        summed = _integrated_offsets(response, threshold, off, normal, wire, 3.0, 25)
+        chance_one.append(np.mean(np.isfinite(one)))
+        chance_both.append(np.mean(np.isfinite(one) | np.isfinite(summed)))
+    assert np.mean(found_one) < 0.7 and np.mean(found_both) > np.mean(found_one) + 0.1
+    assert np.mean(chance_both) < np.mean(chance_one) + 0.05
+    response, threshold, _, _ = _faint_line(60.0, 0, dashed=True)
+    one = loose(response, threshold, uv)
+    summed = _integrated_offsets(response, threshold, uv, normal, wire, 3.0, 25)
+    in_gap = (uv[:, 0] % 120 >= 55) & (uv[:, 0] % 120 < 105)  # 15 px clear of the dashes
+    on_dash = (uv[:, 0] % 120 >= 15) & (uv[:, 0] % 120 < 25)
+    assert np.mean(np.isfinite(summed[on_dash])) > 0.9
+    both = np.isfinite(one) | np.isfinite(summed)
+    assert np.mean(both[in_gap]) < np.mean(np.isfinite(one[in_gap])) + 0.1
+
+
+def test_the_median_along_the_curve_counts_between_the_wire_ends_only(nadir_view):
+    """A faint wire along x, 20 m up, over texture: between the wire's measured ends the
+    median along the curve finds it at more places than one template does; past the ends
+    (where a point leaving the curve may be a support's bend, judged at one template's
+    precision) the view finds it exactly as one template does."""
+    rng = np.random.default_rng(5)
+    img = 100 + rng.normal(0, 6.0, (300, 400))
+    rows = np.arange(300)[:, None] + 0.5
+    img += 3.0 * np.exp(-0.5 * ((rows - 150.0) / 0.7) ** 2)
+    view = nadir_view(np.clip(img, 0, 255).astype(np.uint8))
+    x = np.arange(-5.4, 5.4, 0.075)
+    n = len(x)
+    pts = np.c_[x, 0 * x, 0 * x + 20]
+    tangent = np.tile([1.0, 0.0, 0.0], (n, 1))
+    across = np.tile([[0.0, -1.0, 0.0], [0.0, 0.0, 1.0]], (n, 1, 1))
+    places = _Places(
+        pts, np.zeros(n, np.int64), across, tangent, n_traced=1, inside=x < 0
+    )  # fmt: skip
+    wire_mask = crop_wire_mask(DetectOptions(), 25)
+    one = _observe(view, places, wire_mask, 90.0, 3.0, 20, DetectOptions())
+    both = _observe(view, places, wire_mask, 90.0, 3.0, 20, DetectOptions(), 25)
+    assert one is not None and both is not None
+    assert np.array_equal(one[0], both[0])
+    on = pts[one[0], 0]
+    inside, past = (on < -0.5) & (on > -4.5), (on > 0.5) & (on < 4.5)
+    found_one, found_both = np.isfinite(one[3]), np.isfinite(both[3])
+    assert found_one[inside].mean() < 0.8
+    assert found_both[inside].mean() > found_one[inside].mean() + 0.05
+    # The median's finds lie within a pixel and a half of where the single template's do (the
+    # line, drawn a pixel off the places): each at its own peak within a pixel of the median's.
+    line = np.nanmedian(one[3][inside])
+    assert np.abs(both[3][inside & found_both & ~found_one] - line).max() < 1.5
+    assert np.array_equal(found_both[past], found_one[past])
