@@ -117,11 +117,16 @@ def _add_time(timings: dict[str, float], stage: str, t0: float) -> None:
     timings[stage] = timings.get(stage, 0.0) + time.perf_counter() - t0
 
 
-def _merged(parts: Sequence[CorridorResult], inlier_distance: float) -> CorridorResult:
+def _merged(
+    parts: Sequence[CorridorResult], inlier_distance: float, long_length: float = np.inf
+) -> CorridorResult:
     """The corridors' results as one: their points, pairs and wires side by side, wire ids
     and point indices kept apart. A wire of a later corridor whose points mostly lie on a
     wire of an earlier one (where two legs of a line overlap at an angle tower, one leg's
-    pairs see the other's wires too) is that wire seen again, and is left out."""
+    pairs see the other's wires too) is that wire seen again, and is left out. So is a
+    piece of a later corridor that holds no wire ``long_length`` long where it is a member
+    of an earlier line's support (:func:`support_members` along that line): a tower's
+    bracing, straight and really there, probed as a line of its own."""
     first = parts[0]
     if len(parts) == 1:
         return dataclasses.replace(first, legs=[0] * len(first.wires), corridors=[first.corridor])
@@ -135,7 +140,19 @@ def _merged(parts: Sequence[CorridorResult], inlier_distance: float) -> Corridor
         v = part.verified
         before = [w.polyline(0.1) for w in wires]
         tree = cKDTree(np.concatenate(before)) if before else None
+        pieces_only = all(w.s_range[1] - w.s_range[0] < long_length for w in part.wires)
         for w, sup in zip(part.wires, part.supports, strict=True):
+            line = _support_member_of(w, parts[:leg], long_length) if pieces_only else None
+            if line is not None:
+                logger.info(
+                    "line at %.1f°: wire %d (%.0f m) is a member of a support of the line at "
+                    "%.1f°; left out",
+                    part.corridor.azimuth_deg,
+                    w.wire_id,
+                    w.s_range[1] - w.s_range[0],
+                    line.corridor.azimuth_deg,
+                )
+                continue
             if tree is not None:
                 d, _ = tree.query(v.pts_in_world[w.point_indices])
                 if np.mean(d <= 2 * inlier_distance) >= 0.5:
@@ -631,7 +648,7 @@ def reconstruct(
         timings["pairs"] = time.perf_counter() - t0
         decoded = [p for c in corridors for p in c.decoded]
         parts = _reconstruct_corridors(scene, corridors, options, timings, tasks, store)
-    part = _merged(parts, options.wires.inlier_distance)
+    part = _merged(parts, options.wires.inlier_distance, options.wires.max_gap)
     corridor, pairs, primitives, verified = (
         part.corridor,
         part.pairs,
@@ -965,6 +982,20 @@ def _joined_tiles(
         wires, supports, verified.pts_in_world, corridor.azimuth_deg, options.wires
     )
     return _side_by_side(corridor, parts, verified, wires, supports)
+
+
+def _support_member_of(
+    wire: FittedWire, lines: Sequence[CorridorResult], long_length: float
+) -> CorridorResult | None:
+    """The first of ``lines`` whose support ``wire`` is a member of (:func:`support_members`
+    along that line, with its wires), or None."""
+    for line in lines:
+        members = support_members(
+            list(line.wires) + [wire], line.corridor.direction_xy, long_length
+        )
+        if any(k == len(line.wires) for k, _ in members):
+            return line
+    return None
 
 
 def _reconstruct_corridors(

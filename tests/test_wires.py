@@ -367,3 +367,31 @@ def test_a_short_piece_far_below_the_wire_ends_at_a_support_is_a_member():
     wires.append(_piece(7, 2.7, -20.0, -14.0, 8.9))  # low, but inside the span
     found = dict(support_members(wires, np.array([1.0, 0.0]), long_length=25.0))
     assert set(found) == {5}
+
+
+def test_a_line_of_pieces_at_another_lines_support_is_its_bracing():
+    """The shared corridor seed 1: the wider look probed a second line at 45° to the first,
+    along a tower's bracing, and it gave three straight 4.5-6.4 m pieces 13-23 m up on the
+    tower, confirmed by the views (they are there). A piece of such a line that is a member
+    of the first line's support is that support's; one in mid-span (a line seen only in
+    pieces, crossing it) is not."""
+    from types import SimpleNamespace
+
+    from colmap_powerline.pipeline import _support_member_of
+
+    def diagonal(wire_id: int, x: float, z: float) -> FittedWire:
+        d = np.array([1.0, 1.0]) / np.sqrt(2.0)
+        return dataclasses.replace(
+            _piece(wire_id, 0.0, -3.0, 3.0, z), plane_origin_xy=np.array([x, 0.0]),
+            plane_direction_xy=d,
+        )  # fmt: skip
+
+    span = [
+        _piece(k, y, -49.5 + 0.3 * k, 48.0 + 0.4 * k, z)
+        for k, (y, z) in enumerate([(4, 21), (4, 26), (5, 31), (-4, 21), (-4, 26), (-5, 31)])
+    ]
+    line = SimpleNamespace(wires=span, corridor=SimpleNamespace(direction_xy=np.array([1.0, 0.0])))
+    assert _support_member_of(diagonal(0, 49.0, 13.0), [line], 25.0) is line
+    assert _support_member_of(diagonal(0, 49.0, 18.0), [line], 25.0) is line
+    assert _support_member_of(diagonal(0, 0.0, 18.0), [line], 25.0) is None  # mid-span
+    assert _support_member_of(diagonal(0, 49.0, 13.0), [], 25.0) is None
