@@ -264,18 +264,25 @@ def evaluate(
     tree = cKDTree(points) if len(points) else None
     fitted_polys = [f.polyline(0.1) for f in fitted]
     fit_dist = [np.stack([distance_to_polyline(fp, pl) for pl in polylines]) for fp in fitted_polys]
+    scored = [t.points(np.arange(2.0, t.length_m - 2.0, 0.05)) for t in truth]
+    fixed: list[B | None] = [None] * len(truth)
+    if views is not None:
+        # Every wire's samples in one pass over the views, whatever other wires' images hide
+        # (tracing fits two lines at once there).
+        tangents = [np.gradient(p, axis=0) if len(p) > 1 else np.zeros_like(p) for p in scored]
+        tangent = np.concatenate(tangents)
+        tangent /= np.maximum(np.linalg.norm(tangent, axis=1, keepdims=True), 1e-12)
+        all_fixed = measurable_points(views, np.concatenate(scored), tangent, np.zeros((0, 3)))
+        cuts = np.cumsum([len(p) for p in scored])[:-1]
+        fixed = [f if len(f) > 1 else None for f in np.split(all_fixed, cuts)]
     scores = []
     for k, t in enumerate(truth):
-        s = np.arange(2.0, t.length_m - 2.0, 0.05)
-        samples = t.points(s)
+        samples = scored[k]
         hit = tree.query(samples)[0] <= 0.10 if tree else np.zeros(len(samples), bool)
         completeness = float(np.mean(hit))
         measurable = complete_there = None
-        if views is not None and len(samples) > 1:
-            tangent = np.gradient(samples, axis=0)
-            tangent /= np.linalg.norm(tangent, axis=1, keepdims=True)
-            # Whatever other wires' images hide: tracing fits two lines at once there.
-            there = measurable_points(views, samples, tangent, np.zeros((0, 3)))
+        there = fixed[k]
+        if there is not None:
             measurable = float(np.mean(there))
             complete_there = float(np.mean(hit[there])) if there.any() else None
         mine = (nearest == k) & (dmin <= 0.30)

@@ -141,8 +141,9 @@ def _merged(
         before = [w.polyline(0.1) for w in wires]
         tree = cKDTree(np.concatenate(before)) if before else None
         pieces_only = all(w.s_range[1] - w.s_range[0] < long_length for w in part.wires)
-        for w, sup in zip(part.wires, part.supports, strict=True):
-            line = _support_member_of(w, parts[:leg], long_length) if pieces_only else None
+        bracing = _support_members_of(part.wires, parts[:leg], long_length) if pieces_only else {}
+        for k, (w, sup) in enumerate(zip(part.wires, part.supports, strict=True)):
+            line = bracing.get(k)
             if line is not None:
                 logger.info(
                     "line at %.1f°: wire %d (%.0f m) is a member of a support of the line at "
@@ -984,18 +985,20 @@ def _joined_tiles(
     return _side_by_side(corridor, parts, verified, wires, supports)
 
 
-def _support_member_of(
-    wire: FittedWire, lines: Sequence[CorridorResult], long_length: float
-) -> CorridorResult | None:
-    """The first of ``lines`` whose support ``wire`` is a member of (:func:`support_members`
-    along that line, with its wires), or None."""
+def _support_members_of(
+    pieces: Sequence[FittedWire], lines: Sequence[CorridorResult], long_length: float
+) -> dict[int, CorridorResult]:
+    """Index into ``pieces`` → the first of ``lines`` whose support that piece is a member of
+    (:func:`support_members` along that line, with its wires)."""
+    out: dict[int, CorridorResult] = {}
     for line in lines:
-        members = support_members(
-            list(line.wires) + [wire], line.corridor.direction_xy, long_length
-        )
-        if any(k == len(line.wires) for k, _ in members):
-            return line
-    return None
+        n = len(line.wires)
+        for k, _ in support_members(
+            list(line.wires) + list(pieces), line.corridor.direction_xy, long_length
+        ):
+            if k >= n:
+                out.setdefault(k - n, line)
+    return out
 
 
 def _reconstruct_corridors(

@@ -537,9 +537,18 @@ def _observe(
     loose = found.copy()
     loose[np.flatnonzero(found)[~strong[cy, cx]]] = False
     loose_offset = offset.copy()
-    if template_px:
-        # A lone place no single template finds may be found by the median along the curve.
-        summed = _integrated_offsets(
+    # Only between the wire's measured ends: past them a point leaving the curve may be a
+    # support's bend, which the bend test tells from the curve's systematic error only at the
+    # single template's precision (with the median's, the shared cross seed 6's R2 stopped
+    # where its curve, 4.5 cm off the wire from pose errors shared along it, met its
+    # continuation). Rounds past the ends look there alone and skip it.
+    between = places.inside[idx] if places.inside is not None else np.ones(len(idx), bool)
+    if template_px and (lone & between).any():
+        # A lone place no single template finds may be found by the median along the curve
+        # (over every lone place of its wire in this view: the places past an end are the
+        # median's neighbours at the end).
+        at = np.full(len(idx), np.nan)
+        at[lone] = _integrated_offsets(
             wm.response,
             threshold,
             local[lone],
@@ -548,16 +557,7 @@ def _observe(
             reach_px,
             template_px,
         )
-        at = np.full(len(idx), np.nan)
-        at[lone] = summed
-        # Only between the wire's measured ends: past them a point leaving the curve may be
-        # a support's bend, which the bend test tells from the curve's systematic error only
-        # at the single template's precision (with the median's, the shared cross seed 6's
-        # R2 stopped where its curve, 4.5 cm off the wire from pose errors shared along it,
-        # met its continuation).
-        if places.inside is not None:
-            at[~places.inside[idx]] = np.nan
-        extra = np.isfinite(at) & ~loose
+        extra = np.isfinite(at) & between & ~loose
         loose |= extra
         loose_offset[extra] = at[extra]
     if joint.any():

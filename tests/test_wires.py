@@ -377,7 +377,7 @@ def test_a_line_of_pieces_at_another_lines_support_is_its_bracing():
     pieces, crossing it) is not."""
     from types import SimpleNamespace
 
-    from colmap_powerline.pipeline import _support_member_of
+    from colmap_powerline.pipeline import _support_members_of
 
     def diagonal(wire_id: int, x: float, z: float) -> FittedWire:
         d = np.array([1.0, 1.0]) / np.sqrt(2.0)
@@ -391,7 +391,11 @@ def test_a_line_of_pieces_at_another_lines_support_is_its_bracing():
         for k, (y, z) in enumerate([(4, 21), (4, 26), (5, 31), (-4, 21), (-4, 26), (-5, 31)])
     ]
     line = SimpleNamespace(wires=span, corridor=SimpleNamespace(direction_xy=np.array([1.0, 0.0])))
-    assert _support_member_of(diagonal(0, 49.0, 13.0), [line], 25.0) is line
-    assert _support_member_of(diagonal(0, 49.0, 18.0), [line], 25.0) is line
-    assert _support_member_of(diagonal(0, 0.0, 18.0), [line], 25.0) is None  # mid-span
-    assert _support_member_of(diagonal(0, 49.0, 13.0), [], 25.0) is None
+
+    def member_of(piece: FittedWire, lines: list) -> object:
+        return _support_members_of([piece], lines, 25.0).get(0)
+
+    assert member_of(diagonal(0, 49.0, 13.0), [line]) is line
+    assert member_of(diagonal(0, 49.0, 18.0), [line]) is line
+    assert member_of(diagonal(0, 0.0, 18.0), [line]) is None  # mid-span
+    assert member_of(diagonal(0, 49.0, 13.0), []) is None
