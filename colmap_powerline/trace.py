@@ -1048,6 +1048,12 @@ def _leaves_curve(
 # metre at the half-scale GSD).
 MATCH_CHANCE_RATIO = 3.0
 MIN_MATCHES = 3
+# A run of matches continuing the wires is taken as wire where it goes on for more than this
+# past the measured wires (model units, metres where the model is): a support's in-line
+# hardware (clamps, a distribution line's insulators) gives a shorter one, 0.8 m on the
+# package's span across the line. Chosen on the shared generator's flight across the line
+# (seed 8: 4.9 m of wire to tower B, which one round of ``extend``, 5 m, left out).
+MIN_MATCHED_RUN = 2.0
 # The displaced tubes: this many inlier distances above and below the curve.
 MATCH_CONTROL_OFFSETS = (-6.0, -3.0, 3.0, 6.0)
 
@@ -1108,6 +1114,18 @@ def primitive_reach(
                         break
             reached.append(float(w.points(np.array([s0 + sign * last]))[0, :2] @ along))
     return (min(reached), max(reached))
+
+
+def matched_reach(
+    measured: tuple[float, float], matched: tuple[float, float]
+) -> tuple[float, float]:
+    """How far along the line tracing may go: at each end, as far as the matches continue
+    the wires (``matched``, :func:`primitive_reach`) where they run on for more than
+    ``MIN_MATCHED_RUN`` past the measured wires (``measured``), else the measured end."""
+    return (
+        matched[0] if matched[0] < measured[0] - MIN_MATCHED_RUN else measured[0],
+        matched[1] if matched[1] > measured[1] + MIN_MATCHED_RUN else measured[1],
+    )
 
 
 def support_reach(
@@ -1210,7 +1228,7 @@ def trace_wires(
             than that along a wire share their image evidence.
         primitives: (M, 3) the pairs' matches, verified or not: the wires are traced as far
             along the line as runs of them continue a wire's curve (:func:`primitive_reach`),
-            when that is more than ``options.extend`` farther than the measured wires reach.
+            when that is more than ``MIN_MATCHED_RUN`` farther than the measured wires reach.
         groups: (len(wires),) each wire's look, ≥ 0: wires of different looks are traced
             from the same image reads as if each look were alone (beside each other in a
             view, they do not narrow each other's search); hypotheses that exclude each other
@@ -1274,16 +1292,14 @@ def trace_wires(
     measured = (float(ends_along.min()), float(ends_along.max()))
     reach = measured
     if primitives is not None:
-        # Taken where the matches run on for more than one round past the measured wires:
-        # a support's insulators and clamps, in line with the wire, give a shorter run
+        # Taken where the matches run on farther than a support's in-line hardware would
         # (0.8 m on the package's span across the line, where the verified wires reach the
-        # supports; 9.5 m of wire that only one strip sees on the shared cross seed 2).
+        # supports; 9.5 m of wire that only one strip sees on the shared cross seed 2, 4.9 m
+        # up to tower B on cross seed 8): the rounds past the ends still have to pass the
+        # bend and share tests there.
         matched = primitive_reach(wires, primitives, along, wires_options.inlier_distance)
         if matched is not None:
-            reach = (
-                matched[0] if matched[0] < measured[0] - options.extend else measured[0],
-                matched[1] if matched[1] > measured[1] + options.extend else measured[1],
-            )
+            reach = matched_reach(measured, matched)
     # Where the measured wires stop short of a support the verified points mark beyond them
     # (the pairs see too little of the wire there, or the detector lost it over the ground
     # there), the trace may go on up to it.

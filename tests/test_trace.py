@@ -29,6 +29,7 @@ from colmap_powerline.trace import (
     _Places,
     _places,
     _Solution,
+    matched_reach,
     primitive_reach,
     support_reach,
     trace_wires,
@@ -435,6 +436,15 @@ def test_matches_continuing_a_wire_take_tracing_farther_along_the_line():
     _, hi = primitive_reach([wire], np.r_[clutter, tower], along, inlier)
     assert hi < 41.0
     assert primitive_reach([], clutter, along, inlier) is None
+
+
+def test_a_run_of_matches_longer_than_a_supports_hardware_lifts_the_reach():
+    """Measured wires reach -42.5..43.9 m along the line (shared cross seed 8): matches that
+    run on 4.9 m to the far tower lift that end, though that is less than one round of
+    tracing; a 0.8 m run (the insulators and clamps of the package's span) does not."""
+    assert matched_reach((-42.5, 43.9), (-48.9, 48.8)) == (-48.9, 48.8)
+    assert matched_reach((-42.5, 43.9), (-43.3, 44.7)) == (-42.5, 43.9)
+    assert matched_reach((-42.5, 43.9), (-48.9, 44.7)) == (-48.9, 43.9)
 
 
 def test_a_support_the_verified_points_mark_beyond_an_end_lets_tracing_reach_it():
