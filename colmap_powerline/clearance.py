@@ -208,6 +208,7 @@ SUPPORT_COLUMNS = (
     "traced_share",
     "confirming_strips",
     "advice",
+    "found_by",
 )
 COVERAGE_COLUMNS = (
     "measured_share",
@@ -265,6 +266,7 @@ def measures_csv(
             row.append("" if sup.traced_share is None else f"{sup.traced_share:.3f}")
             row.append(sup.confirming_strips)
             row.append(sup.advice or "")
+            row.append(sup.found_by)
         if coverage is not None:
             cov = coverage[k]
             row += [f"{cov.measured_share:.3f}", len(cov.gaps), f"{cov.longest_gap_m:.3f}"]

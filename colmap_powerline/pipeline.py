@@ -18,6 +18,7 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 from scipy.spatial import cKDTree
+from scipy.stats import norm
 
 from .clearance import WireMeasures, assign_kinds, measure_wire
 from .coverage import log_coverage, measured_coverage, pairs_onto_traced
@@ -25,6 +26,7 @@ from .dense import dense_ground, fill, open_ply
 from .detect import DetectOptions, WireMask, detect_wires
 from .errors import InputError, PairGeometryError
 from .export import export_results
+from .faint import faint_hypotheses
 from .files import wire_colors
 from .geometry import (
     across_of,
@@ -1250,6 +1252,10 @@ def reconstruct_corridor(
             wires, supports, verified, scene, corridor, options, judge
         )
         decoded += dec
+        wires, supports, verified, dec = _faint_wires(
+            wires, supports, verified, scene, corridor, options, judge
+        )
+        decoded += dec
         # Two confirmed pieces that tracing grew along the same wire are one (shared soil
         # seed 13: two pieces of a conductor, 14 and 8 m apart, traced into two 93 m copies
         # 1.6 cm apart).
@@ -1323,11 +1329,13 @@ def _traced(
     min_redundancy: float = 0.0,
     primitives: npt.NDArray[np.float64] | None = None,
     groups: list[int] | None = None,
+    evident: list[bool] | None = None,
 ) -> tuple[list[FittedWire], list[WireSupport], VerifiedPoints, list[Path]]:
     """The wires traced in every view (:func:`trace_wires`): refitted, their traced points
     added to the measured ones, their ``traced_share`` in the support (``primitives``: the
     pairs' matches, which may take tracing farther along the line than the measured wires
-    reach; ``groups``: each wire's look, see :func:`trace_wires`)."""
+    reach; ``groups``: each wire's look, ``evident``: the wires the line evidence shows, see
+    :func:`trace_wires`)."""
     wires, traced = trace_wires(
         scene,
         wires,
@@ -1345,6 +1353,7 @@ def _traced(
         options.verify.template_length_px,
         primitives,
         groups,
+        evident,
     )
     supports = [
         dataclasses.replace(s, traced_share=None if np.isnan(f) else round(float(f), 3))
@@ -1468,6 +1477,19 @@ def _shifted(wire: FittedWire, across: float, dz: float, wire_id: int) -> Fitted
     )
 
 
+def _covered(w: FittedWire, others: list[FittedWire], in_plan: bool = False) -> bool:
+    """Most of ``w`` lies on another wire between that wire's ends (not on its curve
+    continued: past a pole the next span's conductor lies near that); ``in_plan``: above or
+    below it."""
+    p = w.polyline(0.5)
+    on = np.zeros(len(p), bool)
+    for o in others:
+        s, across, _ = o.plane_coords(p)
+        off = np.abs(across) if in_plan else o.distance(p)
+        on |= (s >= o.s_range[0]) & (s <= o.s_range[1]) & (off < CONTINUATION_DISTANCE)
+    return bool(on.mean() >= MIN_SIBLING_OVERLAP)
+
+
 def _siblings(
     wires: list[FittedWire],
     supports: list[WireSupport],
@@ -1494,24 +1516,12 @@ def _siblings(
     if not offsets:
         return wires, supports, verified, []
 
-    def covered(w: FittedWire, others: list[FittedWire], in_plan: bool = False) -> bool:
-        # Most of it lies on another wire between that wire's ends (not on its curve
-        # continued: past a pole the next span's conductor lies near that); in plan: above
-        # or below it.
-        p = w.polyline(0.5)
-        on = np.zeros(len(p), bool)
-        for o in others:
-            s, across, _ = o.plane_coords(p)
-            off = np.abs(across) if in_plan else o.distance(p)
-            on |= (s >= o.s_range[0]) & (s <= o.s_range[1]) & (off < CONTINUATION_DISTANCE)
-        return bool(on.mean() >= MIN_SIBLING_OVERLAP)
-
     cand: list[FittedWire] = []
     source: list[int] = []
     for k, w in enumerate(wires):
         for across, dz in offsets:
             h = _shifted(w, across, dz, len(cand))
-            if not covered(h, wires + cand):
+            if not _covered(h, wires + cand):
                 cand.append(h)
                 source.append(k)
     if not cand:
@@ -1568,7 +1578,7 @@ def _siblings(
         f = shares[i]
         if f is None or f < MIN_TRACED_SHARE:
             break
-        if not covered(cand[i], [cand[j] for j in taken], in_plan=True):
+        if not _covered(cand[i], [cand[j] for j in taken], in_plan=True):
             taken.append(i)
     logger.info(
         "siblings: %d hypotheses at the line's %d offsets beside %d wires; found by the views "
@@ -1610,6 +1620,150 @@ def _siblings(
     return wires, supports, verified, decoded + dec
 
 
+# A faint wire's hypothesis must be found this many times as often as its copies moved
+# across (the chance level of the peak test there).
+FAINT_CHANCE_RATIO = 3.0
+
+
+def _faint_wires(
+    wires: list[FittedWire],
+    supports: list[WireSupport],
+    verified: VerifiedPoints,
+    scene: Scene,
+    corridor: WireCorridor,
+    options: ReconstructionOptions,
+    judge: Callable[[list[FittedWire]], list[WireSupport]],
+) -> tuple[list[FittedWire], list[WireSupport], VerifiedPoints, list[Path]]:
+    """The wires too faint for the detector that the views' line evidence, integrated along
+    hypothesised curves, shows in the line's cross-section (:mod:`colmap_powerline.faint`):
+    each hypothesis traced as such (a response peak that stands out counts on it, every view
+    checked by the others, looked for again refitted to what the views found) and kept
+    where the views that would fix it find it at ``MIN_TRACED_SHARE`` of its places or more,
+    ``FAINT_CHANCE_RATIO`` times as often as its copies moved across, and no confirmed wire
+    lies along most of it, then traced in full. Its support is measured as the pairs that
+    measured the line's longest wire would see it, as a sibling's is."""
+    if not options.trace.faint or not options.trace.enabled or not wires:
+        return wires, supports, verified, []
+    hyps, decoded = faint_hypotheses(
+        scene, wires, options.detect, options.trace.faint_min_z, options.verify.num_threads
+    )
+    source = [i for i, h in enumerate(hyps) if not _covered(h.wire, wires)]
+    cand = [dataclasses.replace(hyps[i].wire, wire_id=g) for g, i in enumerate(source)]
+    if not cand:
+        return wires, supports, verified, decoded
+    ref = max(range(len(wires)), key=lambda k: wires[k].s_range[1] - wires[k].s_range[0])
+    look = dataclasses.replace(options.trace, max_rounds=0)
+    sup = [dataclasses.replace(supports[ref], wire_id=g) for g in range(4 * len(cand))]
+
+    def looks(hs: list[FittedWire]) -> tuple[list[FittedWire], list[WireSupport]]:
+        fitted, out, _, dec = _traced(
+            hs, sup[: len(hs)], verified, scene, corridor, options, look, wires, MIN_REDUNDANCY,
+            groups=list(range(len(hs))), evident=[True] * len(hs),
+        )  # fmt: skip
+        decoded.extend(dec)
+        return fitted, out
+
+    fitted, looked = looks(cand)
+    # The sweep places a hypothesis to a step (10-20 cm), tracing searches a few pixels
+    # (3 px: 7 cm at the half-scale GSD): where the views found it at some places, it is
+    # refitted to what they found and looked for again, and taken at its better look.
+    again = [
+        i
+        for i, (f, s) in enumerate(zip(fitted, looked, strict=True))
+        if (s.traced_share or 0.0) > 0.0 and len(f.point_indices) >= options.wires.min_points
+    ]
+    if again:
+        moved = [
+            dataclasses.replace(fitted[i], wire_id=g, point_indices=np.zeros(0, np.int64))
+            for g, i in enumerate(again)
+        ]
+        _, second = looks(moved)
+        for g, i in enumerate(again):
+            if (second[g].traced_share or 0.0) > (looked[i].traced_share or 0.0):
+                cand[i] = dataclasses.replace(moved[g], wire_id=i)
+                looked[i] = dataclasses.replace(second[g], wire_id=i)
+    shares = [s.traced_share for s in looked]
+    # Against chance: the same hypothesis moved across by 4 and 8 search reaches each way
+    # (off the wire in every view), where the peaks that stand out are found only by
+    # accident; it must be found FAINT_CHANCE_RATIO times as often (among the other
+    # conductors' images, a hypothesis between them is found at up to 16 % of its places on
+    # the shared grid seed 8, and so are its moved copies).
+    passing = [i for i in range(len(cand)) if (shares[i] or 0.0) >= MIN_TRACED_SHARE]
+    if passing:
+        centres = scene.centers_in_world
+        controls: list[FittedWire] = []
+        for i in passing:
+            mid = cand[i].points(np.array([np.mean(cand[i].s_range)]))[0]
+            gsd = float(np.min(np.linalg.norm(centres - mid, axis=1))) / scene.images[0].focal_px
+            step = 4.0 * options.trace.reach_px * gsd
+            controls += [
+                _shifted(cand[i], m * step, 0.0, len(controls) + q)
+                for q, m in enumerate((-2.0, -1.0, 1.0, 2.0))
+            ]
+        _, chance = looks(controls)
+        for n, i in enumerate(passing):
+            level = float(np.mean([c.traced_share or 0.0 for c in chance[4 * n : 4 * n + 4]]))
+            if (shares[i] or 0.0) < FAINT_CHANCE_RATIO * level:
+                logger.info(
+                    "faint: a hypothesis found at %.0f %% of its places, its copies moved across "
+                    "at %.0f %%: chance, dropped",
+                    100 * (shares[i] or 0.0),
+                    100 * level,
+                )
+                shares[i] = 0.0
+    taken: list[int] = []
+    for i in sorted(range(len(cand)), key=lambda i: -(shares[i] or 0.0)):
+        if (shares[i] or 0.0) < MIN_TRACED_SHARE:
+            break
+        if not _covered(cand[i], [cand[j] for j in taken], in_plan=True):
+            taken.append(i)
+    logger.info(
+        "faint: %d hypotheses from the line evidence; found by the views at %s of their places%s",
+        len(cand),
+        [None if f is None else round(f, 2) for f in shares],
+        f"; {len(taken)} kept" if taken else "",
+    )
+    if not taken:
+        return wires, supports, verified, decoded
+    n = len(wires)
+    kept_from = [source[i] for i in taken]
+    new = [dataclasses.replace(cand[i], wire_id=n + j) for j, i in enumerate(taken)]
+    new_sup = [dataclasses.replace(looked[i], wire_id=n + j) for j, i in enumerate(taken)]
+    new, new_sup, verified, dec = _traced(
+        new, new_sup, verified, scene, corridor, options, context=wires,
+        min_redundancy=MIN_REDUNDANCY, evident=[True] * len(new),
+    )  # fmt: skip
+    decoded += dec
+    # The support as the pairs that measured the line's longest wire would see it.
+    paired = verified.pair_index
+    own = wires[ref].point_indices
+    for j in range(len(new)):
+        as_seen = dataclasses.replace(new[j], point_indices=own[paired[own] >= 0])
+        measured = judge([as_seen])[0]
+        # Its confidence: that no cell of the sweep reached its evidence by chance
+        # (Bonferroni over the cells), the detector's hit rates being blind to it.
+        hyp = hyps[kept_from[j]]
+        new_sup[j] = dataclasses.replace(
+            measured,
+            wire_id=new[j].wire_id,
+            traced_share=new_sup[j].traced_share,
+            found_by="line evidence",
+            evidence_sd=round(hyp.z_score, 1),
+            confidence=round(1.0 - min(1.0, hyp.cells * float(norm.sf(hyp.z_score))), 6),
+        )
+        logger.info(
+            "faint: a %.0f m wire %.2f across and %.2f above wire %d, found by the views "
+            "that fix it at %.0f %% of its places: kept",
+            new[j].s_range[1] - new[j].s_range[0],
+            *[float(v) for v in _offset_of(new[j], wires[ref])],
+            wires[ref].wire_id,
+            100 * (new_sup[j].traced_share or 0.0),
+        )
+    wires, supports = _without_untraced(wires + new, supports + new_sup)
+    wires, supports = _without_members(wires, supports, corridor, options)
+    return wires, supports, verified, decoded
+
+
 def _offset_of(wire: FittedWire, other: FittedWire) -> tuple[float, float]:
     """The median offset (across, height) of ``wire`` from ``other``."""
     _, across, dz = other.plane_coords(wire.polyline(0.5))
@@ -1639,10 +1793,11 @@ def _without_unconfirmed(
     before tracing as well as after: the pairing holds, in one strip, the line of the wire
     whose image it borrowed, and tracing, which sees that wire only beside it there, would
     fix it nowhere and drop it (mixed seed 3's R2: 0 % with the rule run only after
-    tracing, 99.7 % with it run before)."""
+    tracing, 99.7 % with it run before). A wire the line evidence found is no pairing, and
+    no strip's detector confirms it (it is too faint for the detector): it stays."""
     keep = []
     for k, (w, s) in enumerate(zip(wires, supports, strict=True)):
-        if s.geometry == "weak" and s.confirming_strips == 0:
+        if s.geometry == "weak" and s.confirming_strips == 0 and s.found_by == "pairs":
             logger.info(
                 "support: wire %d dropped (%.0f m): no view can tell it from a false pairing "
                 "and no strip confirms it on its own (each sees it only where other wires "

@@ -93,6 +93,11 @@ class WireSupport:
     confirming_strips: int = 0  # strips whose views see a stretch of it that no other wire
     # explains (one strip alone confirms a plane through its cameras, not where in it the
     # wire lies)
+    found_by: str = "pairs"  # "pairs": matched by image pairs and confirmed by the views;
+    # "line evidence": too faint for the detector, found by the line evidence of all views
+    # together and measured by tracing (:mod:`colmap_powerline.faint`)
+    evidence_sd: float | None = None  # "line evidence": how many of the sweep's standard
+    # deviations its evidence stands out
     supported_s: tuple[float, float] | None = None  # (not written) when the views reject
     # the wire as a whole but support one stretch of it: that stretch along its plane
 

@@ -141,12 +141,17 @@ class TraceOptions:
     max_rounds: int = 20  # at most this many rounds past the ends
     loose: bool = True  # within the stretch confirmed, of a wire the views find, take a
     # response peak that stands out as the wire centre (no length filter)
+    faint: bool = True  # sweep each line's cross-section for wires too faint for the
+    # detector, by the line evidence of all views together (colmap_powerline.faint)
+    faint_min_z: float = 6.0  # a hypothesis of the sweep is traced where its evidence is
+    # this many of the sweep's robust standard deviations
 
     LIMITS: ClassVar[dict[str, str]] = {
         "step_px": "> 0",
         "reach_px": "[0.5, 20]",
         "extend": ">= 0",
         "max_rounds": ">= 0",
+        "faint_min_z": ">= 3",
     }
 
     def __post_init__(self) -> None:
@@ -1210,6 +1215,7 @@ def trace_wires(
     template_length_px: int = 25,
     primitives: F64 | None = None,
     groups: Sequence[int] | None = None,
+    evident: Sequence[bool] | None = None,
 ) -> tuple[list[FittedWire], TracedPoints]:
     """Measure each confirmed wire in every view that sees it (module docstring).
 
@@ -1233,6 +1239,10 @@ def trace_wires(
             from the same image reads as if each look were alone (beside each other in a
             view, they do not narrow each other's search); hypotheses that exclude each other
             are looked for so at once. None: one look.
+        evident: (len(wires),) wires whose line evidence other than the detector's shows them
+            (:mod:`colmap_powerline.faint`): a response peak that stands out counts on them
+            from the start, as on a wire the views find, and their share is that of the
+            places so found. None: none.
 
     Returns:
         The wires refitted to their measured and traced points (indices past
@@ -1364,11 +1374,17 @@ def trace_wires(
             if options.loose:
                 # On the wires the views find, within the stretch confirmed, a peak that
                 # stands out will do.
+                shown = np.zeros(len(wires), bool) if evident is None else np.asarray(evident)
                 found = np.r_[
-                    np.isnan(share) | (share >= MIN_TRACED_SHARE), np.zeros(len(context), bool)
+                    np.isnan(share) | (share >= MIN_TRACED_SHARE) | shown,
+                    np.zeros(len(context), bool),
                 ]
                 sol = _measure(obs, places, tolerance_px, bias, found[places.wire])
                 good, sigma = _kept(sol, sigma_px, max_sigma, min_redundancy)
+                if shown.any():
+                    share = np.where(
+                        shown, _found_share(good, measurable, places.wire, len(wires)), share
+                    )
         if min_redundancy <= 0:
             # On confirmed wires (not the second look, which asks every view to be checked
             # by the others), a place two views fix is checked by the wire's curve.

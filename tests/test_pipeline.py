@@ -74,9 +74,11 @@ def test_end_to_end_accuracy_and_completeness(run, medium_span):
     # verifies four pairs per candidate direction and band before the run proper, and
     # tracing reads each image once more and those near the wires' ends again at each 5 m
     # past them. Looking for more lines (the wider look's 8 images, and the densest band
-    # of five more directions probed) reads 101 more: 449 reads, 14 per image. Sharing
-    # those reads with the run is the speed issue's work; this bounds it.
-    assert len(result.decoded) <= 15 * len(result.scene)
+    # of five more directions probed) reads 101 more: 449 reads, 14 per image. The sweep
+    # for wires too faint for the detector reads each image that sees the line twice (its
+    # coarse and fine passes) and tracing its hypotheses twice more: 541 reads, 17 per
+    # image. Sharing those reads with the run is the speed issue's work; this bounds it.
+    assert len(result.decoded) <= 18 * len(result.scene)
 
 
 def test_outputs_follow_the_contract(run, medium_span):

@@ -184,6 +184,10 @@ def test_a_wire_no_view_can_tell_and_no_strip_confirms_is_dropped(conductors):
     kept, kept_sup = _without_unconfirmed(wires, sup)
     assert [w.z0 for w in kept] == [wires[1].z0, wires[2].z0]
     assert [w.wire_id for w in kept] == [s.wire_id for s in kept_sup] == [0, 1]
+    # A wire the line evidence found is no pairing, and no detector confirms it: it stays.
+    faint = dataclasses.replace(sup[0], found_by="line evidence", evidence_sd=9.0)
+    kept, kept_sup = _without_unconfirmed(wires[:1], [faint])
+    assert len(kept) == 1 and kept_sup[0].found_by == "line evidence"
 
 
 def test_wires_the_views_would_fix_but_do_not_find_are_dropped(conductors):

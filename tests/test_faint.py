@@ -1,0 +1,107 @@
+"""The faint-wire sweep: a wire too faint for the detector, found from all views' evidence."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pycolmap
+import pytest
+
+from colmap_powerline.detect import DetectOptions, detect_wires
+from colmap_powerline.evaluate import distance_to_polyline
+from colmap_powerline.faint import faint_hypotheses
+from colmap_powerline.scene import Scene, SceneImage
+from colmap_powerline.wires import FittedWire
+
+W, H, F = 600, 600, 600.0  # px; 26 m below the views (the wires) a pixel is 4.3 cm
+
+
+def _wire(wire_id: int, y: float, z_end: float, sag: float) -> FittedWire:
+    """A 40 m wire along x (-20..20 m) at ``y``, its ends at ``z_end``, sagging ``sag``."""
+    a = 40.0**2 / (8.0 * sag)
+    return FittedWire(
+        wire_id=wire_id,
+        plane_origin_xy=np.array([0.0, y]),
+        plane_direction_xy=np.array([1.0, 0.0]),
+        catenary_a=a,
+        s0=0.0,
+        z0=z_end - a * (np.cosh(20.0 / a) - 1.0),
+        s_range=(-20.0, 20.0),
+        point_indices=np.zeros(0, np.int64),
+        rms_residual=0.0,
+    )
+
+
+def _scene(tmp_path, drawn: list[tuple[FittedWire, float]], seed: int = 0) -> Scene:
+    """Fifteen nadir views 50 m up, three strips 8 m apart along the wires, of noisy ground
+    (grey 128, sd 8) with each wire drawn about a pixel wide at its contrast (grey levels)."""
+    rng = np.random.default_rng(seed)
+    camera = pycolmap.Camera(
+        model="PINHOLE", width=W, height=H, params=[F, F, W / 2, H / 2], camera_id=1
+    )
+    rot = np.diag([1.0, -1.0, -1.0])  # world x is image u, world y image -v
+    images = []
+    for k, (x, y) in enumerate(
+        (x, y) for y in (-8.0, 0.0, 8.0) for x in (-10.0, -5.0, 0.0, 5.0, 10.0)
+    ):
+        path = tmp_path / f"view{k}.png"
+        im = SceneImage(k + 1, path.name, path, camera, rot, -rot @ np.array([x, y, 50.0]))
+        up = 4  # drawn at 4x, then averaged down
+        canvas = np.zeros((H * up, W * up), np.float32)
+        for w, contrast in drawn:
+            uv, _, ok = im.project(w.polyline(0.02))
+            line = np.zeros_like(canvas)
+            pts = np.round((uv[ok] + 0.5) * up - 0.5).astype(np.int32)
+            cv2.polylines(line, [pts], False, 1.0, thickness=up)
+            canvas += contrast * line
+        grey = 128.0 + cv2.resize(canvas, (W, H), interpolation=cv2.INTER_AREA)
+        grey += rng.normal(0.0, 8.0, grey.shape)
+        cv2.imwrite(str(path), np.clip(grey, 0, 255).astype(np.uint8))
+        images.append(im)
+    ground = np.zeros((1, 3))
+    return Scene(
+        tmp_path, tmp_path, tuple(images), ground, np.zeros((1, 3), np.uint8), np.zeros(1),
+        np.full(1, 3),
+    )  # fmt: skip
+
+
+def test_a_wire_too_faint_for_the_detector_is_found_by_all_views_together(tmp_path):
+    """A wire 2 m beside and 4 m above a confirmed one, drawn at half the image noise: the
+    detector marks few of its pixels, and the sweep puts a hypothesis on it within a few
+    centimetres (a pixel is 4.3 cm). The views of one strip see it as well from hypotheses
+    metres higher, which the sweep may also make: tracing, with every view checked by the
+    others, is what tells them apart (``pipeline._faint_wires``)."""
+    confirmed = _wire(0, 0.0, 20.0, 0.5)
+    faint = _wire(1, 2.0, 24.0, 0.8)
+    scene = _scene(tmp_path, [(confirmed, -60.0), (faint, 4.0)])
+    # Too faint for the detector: it marks few of the faint wire's pixels (in pieces, too
+    # short to pair into a wire).
+    marked = []
+    for im in scene.images:
+        mask = detect_wires(cv2.imread(str(im.path), cv2.IMREAD_GRAYSCALE), 0.0).mask
+        uv, _, ok = im.project(faint.polyline(0.1))
+        px = np.round(uv[ok]).astype(int)
+        px = px[(px[:, 0] >= 0) & (px[:, 0] < W) & (px[:, 1] >= 0) & (px[:, 1] < H)]
+        marked.append(mask[px[:, 1], px[:, 0]])
+    assert np.concatenate(marked).mean() < 0.2
+    hyps, decoded = faint_hypotheses(scene, [confirmed], DetectOptions(), 6.0)
+    assert len(decoded) == 15
+    assert 1 <= len(hyps) <= 4
+    d = [np.median(distance_to_polyline(h.wire.polyline(0.5), faint.polyline(0.05))) for h in hyps]
+    assert min(d) < 0.1
+    assert all(h.z_score >= 6.0 for h in hyps)
+    # None on the confirmed wire: its image is masked in every view.
+    assert all(
+        np.median(distance_to_polyline(h.wire.polyline(0.5), confirmed.polyline(0.05))) > 1.0
+        for h in hyps
+    )
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+def test_no_faint_wire_no_hypothesis(tmp_path, seed):
+    """The same views with the confirmed wire alone: the sweep's chance peaks stay below
+    the threshold, and no hypothesis is made."""
+    confirmed = _wire(0, 0.0, 20.0, 0.5)
+    scene = _scene(tmp_path, [(confirmed, -60.0)], seed)
+    hyps, _ = faint_hypotheses(scene, [confirmed], DetectOptions(), 6.0)
+    assert hyps == []
