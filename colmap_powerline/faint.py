@@ -6,24 +6,36 @@ detector's contrast threshold in every image, so no pair matches it and no curve
 it; yet all the views together see it. The line template's response, divided by its local
 level (the detector's contrast normalisation), averaged along a wire's whole projection and
 over every view that sees it, stands far out of its surroundings: on the shared generator's
-two-strip flight over soil (seed 11) 8 noise levels at the shield's true place, where a
-single template finds it at 6 % of its places.
+two-strip flight over soil (seed 11), the normalised response averages 0.6-1.0 of its local
+level along the shield's true place in each view, where a single template finds it at 6 %
+of its places.
 
 So each line's cross-section is swept. Hypotheses are the line's longest wire moved across
-and up, with its sag changed (the catenary through its ends' heights, moved up as much):
-each is projected into every view that sees most of the span, and its evidence is the mean,
-over those views, of the mean normalised response along its projection, with every
-confirmed wire's image masked out (a hypothesis lying along a confirmed wire's image in some
-views would otherwise borrow its response). The evidence of all hypotheses is turned into a
-robust z-score (median and median absolute deviation over the sweep): chance peaks of a
-sweep of some 10^4 independent cells stay within about 4.5, so a hypothesis is taken where
-its evidence is ``TraceOptions.faint_min_z`` or more. The coarse sweep's maps are blurred by
-half a step in pixels, so that a wire between two cells is not missed; the best cell is
-then refined at a quarter of the step on the sharp maps.
+and up, with its sag changed (the catenary through its ends' heights, moved up as much).
+Each is sampled along its stretch and projected into every view; its evidence is the mean
+normalised response over every sample every view sees of it (a view of an area survey sees
+a fifth of a span, one of a corridor most of it), with every confirmed wire's image masked
+out (a hypothesis lying along a confirmed wire's image in some views would otherwise borrow
+its response). A view's response is taken as its highest (bright wires) or lowest (dark)
+within half a step across the wire's image, so that a wire between two cells, or a pixel off
+in a view's pose, is not missed: a blur would cancel the template's ridge against its
+negative side lobes. Each hypothesis is judged against the median of those within
+``BACKGROUND`` of it (what varies slowly over the cross-section, the number of views, a
+mask's edge, the ground under it, is no wire; a wire is a narrow peak), times the square
+root of its samples, in robust standard deviations of the whole sweep (median absolute
+deviation): chance peaks of a sweep of 10^4-10^5 cells stay near 4.5, so a hypothesis is
+taken where its evidence is ``TraceOptions.faint_min_z`` or more. On soil seed 11 the shield
+is the sweep's strongest peak, 15 sd, its hypothesis 2 cm from it after the refinement (a
+quarter step apart, on the views' extremes within a pixel). Hypotheses a few metres off a
+wire reach 6-10 sd too: the views of one strip see a wire as well from a few heights.
 
 A hypothesis is only that: tracing then measures it in every view, with the response peaks
 that stand out counted (the evidence is what the detector's length filter gives elsewhere),
-and keeps it only where the views that would fix it find it (``pipeline._faint_wires``).
+and keeps it only where the views that would fix it find it, and more often than copies of
+it moved across (``pipeline._faint_wires``).
+
+Memory holds one view's maps per thread: each view is read, scored and let go, once for the
+coarse sweep and once for the refinement.
 """
 
 from __future__ import annotations
@@ -77,6 +89,8 @@ BACKGROUND = 1.0
 # At most this many hypotheses per line, each this far (across or up) from the others.
 MAX_HYPOTHESES = 4
 SEPARATION = 1.0
+# OpenCV's remap takes images and maps of fewer rows and columns than this.
+SHRT_MAX = 32767
 # A view's confirmed wires are masked this many pixels beyond the template's side taps.
 MASK_PAD_PX = 2
 
@@ -252,6 +266,24 @@ def _lattice(ref: FittedWire, across: F64, up: F64, sag_steps: Sequence[int]) ->
     )
 
 
+def _remap(image: F32, x: F32, y: F32) -> F32:
+    """``image`` sampled (bilinear) at (x, y), of any shape: OpenCV's remap takes fewer than
+    2^15 rows and columns, so the rows go in blocks."""
+    rows = SHRT_MAX - 1
+    return np.concatenate(
+        [
+            cv2.remap(
+                image,
+                x[i : i + rows],
+                y[i : i + rows],
+                cv2.INTER_LINEAR,
+                borderMode=cv2.BORDER_REPLICATE,
+            )  # fmt: skip
+            for i in range(0, len(x), rows)
+        ]
+    )
+
+
 def _view_scores(view: _View, lattice: _Lattice) -> tuple[F64, F64]:
     """(2, A, Z, K) the sum of the view's response over each hypothesis's samples it sees,
     bright and dark, and (A, Z, K) how many it sees (0 where fewer than
@@ -275,14 +307,7 @@ def _view_scores(view: _View, lattice: _Lattice) -> tuple[F64, F64]:
         x = (pos[..., 0] - view.x0).reshape(-1, n_s)
         y = (pos[..., 1] - view.y0).reshape(-1, n_s)
         inside = ok & (x >= 0) & (y >= 0) & (x <= w - 1) & (y <= h - 1)
-        vals = [
-            np.where(
-                inside,
-                cv2.remap(m, x, y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE),
-                np.nan,
-            )
-            for m in view.maps
-        ]
+        vals = [np.where(inside, _remap(m, x, y), np.nan) for m in view.maps]
         n = np.isfinite(vals[0]).sum(axis=1)
         use = n >= MIN_VIEW_SAMPLES
         for p, v in enumerate(vals):

@@ -105,3 +105,18 @@ def test_no_faint_wire_no_hypothesis(tmp_path, seed):
     scene = _scene(tmp_path, [(confirmed, -60.0)], seed)
     hyps, _ = faint_hypotheses(scene, [confirmed], DetectOptions(), 6.0)
     assert hyps == []
+
+
+def test_remap_takes_any_number_of_rows():
+    """OpenCV's remap takes fewer than 2^15 rows: a sweep of 300 x 150 cells has 45,000."""
+    from scipy.ndimage import map_coordinates
+
+    from colmap_powerline.faint import _remap
+
+    rng = np.random.default_rng(0)
+    image = rng.random((50, 60)).astype(np.float32)
+    x = (rng.random((45000, 4)) * 59).astype(np.float32)
+    y = (rng.random((45000, 4)) * 49).astype(np.float32)
+    np.testing.assert_allclose(
+        _remap(image, x, y), map_coordinates(image, [y, x], order=1), atol=1e-5
+    )
