@@ -1490,6 +1490,32 @@ def _covered(w: FittedWire, others: list[FittedWire], in_plan: bool = False) -> 
     return bool(on.mean() >= MIN_SIBLING_OVERLAP)
 
 
+def _best_apart(cand: list[FittedWire], shares: list[float | None], bar: float) -> list[int]:
+    """The hypotheses found at ``bar`` of their places or more, best first, of two at one
+    place in plan the better."""
+    taken: list[int] = []
+    for i in sorted(range(len(cand)), key=lambda i: -(shares[i] or 0.0)):
+        if (shares[i] or 0.0) < bar:
+            break
+        if not _covered(cand[i], [cand[j] for j in taken], in_plan=True):
+            taken.append(i)
+    return taken
+
+
+def _support_as_seen(
+    wire: FittedWire,
+    neighbour: FittedWire,
+    traced_share: float | None,
+    verified: VerifiedPoints,
+    judge: Callable[[list[FittedWire]], list[WireSupport]],
+) -> WireSupport:
+    """``wire``'s support as the pairs that measured ``neighbour`` would see it (the camera
+    geometry of a wire a few metres away is the same), with its traced share."""
+    own = neighbour.point_indices
+    as_seen = dataclasses.replace(wire, point_indices=own[verified.pair_index[own] >= 0])
+    return dataclasses.replace(judge([as_seen])[0], wire_id=wire.wire_id, traced_share=traced_share)
+
+
 def _siblings(
     wires: list[FittedWire],
     supports: list[WireSupport],
@@ -1573,13 +1599,7 @@ def _siblings(
                 cand[i] = dataclasses.replace(base[i], z0=base[i].z0 + lift * CONTINUATION_DISTANCE)
     shares = [s.traced_share for s in looked]
     # Best found first; of two at one place in plan, the better.
-    taken: list[int] = []
-    for i in sorted(range(len(cand)), key=lambda i: -(shares[i] or 0.0)):
-        f = shares[i]
-        if f is None or f < MIN_TRACED_SHARE:
-            break
-        if not _covered(cand[i], [cand[j] for j in taken], in_plan=True):
-            taken.append(i)
+    taken = _best_apart(cand, shares, MIN_TRACED_SHARE)
     logger.info(
         "siblings: %d hypotheses at the line's %d offsets beside %d wires; found by the views "
         "at %s of their places%s",
@@ -1598,14 +1618,9 @@ def _siblings(
         new, new_sup, verified, scene, corridor, options, context=wires,
         min_redundancy=MIN_REDUNDANCY,
     )  # fmt: skip
-    # The support as the pairs that measured the neighbour would see it.
-    paired = verified.pair_index
     for j, i in enumerate(taken):
-        own = wires[source[i]].point_indices
-        as_seen = dataclasses.replace(new[j], point_indices=own[paired[own] >= 0])
-        measured = judge([as_seen])[0]
-        new_sup[j] = dataclasses.replace(
-            measured, wire_id=new[j].wire_id, traced_share=new_sup[j].traced_share
+        new_sup[j] = _support_as_seen(
+            new[j], wires[source[i]], new_sup[j].traced_share, verified, judge
         )
         logger.info(
             "siblings: a %.0f m wire %.2f across and %.2f above wire %d, found by the views "
@@ -1714,12 +1729,7 @@ def _faint_wires(
                     100 * level,
                 )
                 shares[i] = 0.0
-    taken: list[int] = []
-    for i in sorted(range(len(cand)), key=lambda i: -(shares[i] or 0.0)):
-        if (shares[i] or 0.0) < MIN_SECOND_LOOK_SHARE:
-            break
-        if not _covered(cand[i], [cand[j] for j in taken], in_plan=True):
-            taken.append(i)
+    taken = _best_apart(cand, shares, MIN_SECOND_LOOK_SHARE)
     logger.info(
         "faint: %d hypotheses from the line evidence; found by the views at %s of their places%s",
         len(cand),
@@ -1737,19 +1747,12 @@ def _faint_wires(
         min_redundancy=MIN_REDUNDANCY, evident=[True] * len(new),
     )  # fmt: skip
     decoded += dec
-    # The support as the pairs that measured the line's longest wire would see it.
-    paired = verified.pair_index
-    own = wires[ref].point_indices
     for j in range(len(new)):
-        as_seen = dataclasses.replace(new[j], point_indices=own[paired[own] >= 0])
-        measured = judge([as_seen])[0]
         # Its confidence: that no cell of the sweep reached its evidence by chance
         # (Bonferroni over the cells), the detector's hit rates being blind to it.
         hyp = hyps[kept_from[j]]
         new_sup[j] = dataclasses.replace(
-            measured,
-            wire_id=new[j].wire_id,
-            traced_share=new_sup[j].traced_share,
+            _support_as_seen(new[j], wires[ref], new_sup[j].traced_share, verified, judge),
             found_by="line evidence",
             evidence_sd=round(hyp.z_score, 1),
             confidence=round(1.0 - min(1.0, hyp.cells * float(norm.sf(hyp.z_score))), 6),
