@@ -104,6 +104,7 @@ def test_sfm_input_errors_are_one_line(small_span, tmp_path, caplog):
     assert len(groups["DJI", "FC330", 1000, 750]) == 31
 
 
+@pytest.mark.slow  # SfM and a medium-span run: over a minute and a half on 2 cores
 def test_pipeline_on_the_sfm_model(sfm_medium, medium_span, tmp_path):
     """The wires from an SfM model (not the true one): every conductor, its sag right.
 
