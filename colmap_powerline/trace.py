@@ -52,7 +52,11 @@ wire bends away or the line turns, and clutter a peak test took does not follow 
 catenary. "While the views keep finding them" means at no less than ``MIN_EXTEND_SHARE``
 of the rate at which they find the wire along its confirmed stretch: a round whose end
 they find less often is dropped and that end stops (a field's rows along the line give
-chance agreements at a few places, and those do follow a curve, refitted to them).
+chance agreements at a few places, and those do follow a curve, refitted to them). Where a
+round past an end finds that fewer than three views see the wire at all (an area survey's
+strips see a shield in stretches 5-20 m apart), nothing says the wire ends there: the next
+round looks on from where that one looked, while the curve continued predicts the wire
+where it looks to the precision a point must have.
 """
 
 from __future__ import annotations
@@ -871,6 +875,17 @@ def _checked_by_curve(
     return out, x_out, sigma_out
 
 
+def _views_seeing(scene: Scene, pts: F64) -> I64:
+    """(N,) how many of the scene's views see each point (inside the image), whatever
+    else lies near it there."""
+    n = np.zeros(len(pts), np.int64)
+    for view in scene.images:
+        near = np.flatnonzero(_roughly_in_view(view, pts))
+        if len(near):
+            n[near] += view.project(pts[near])[2]
+    return n
+
+
 def _measurable(sol: _Solution, sigma_px: float, max_sigma: float) -> npt.NDArray[np.bool_]:
     """The places the views would fix well enough had they all found the wire."""
     seen_ok = sol.seen >= MIN_VIEWS
@@ -1293,6 +1308,12 @@ def trace_wires(
     base_share = np.full(len(wires), np.nan)
     # (wire, end: 0 low, 1 high) → the points of a round on probation at that end.
     probation: dict[tuple[int, int], I64] = {}
+    # (wire, end) → how far along the wire (s) a round past that end looked where fewer than
+    # three views see the wire at all (an area survey's strips see a shield in stretches
+    # 5-20 m apart): the next round looks on from there, while the curve still predicts the
+    # wire there. Not where views see it but the wires beside it hide it: there the places
+    # looked at narrow the search on those wires.
+    unfixed: dict[tuple[int, int], float] = {}
     bias: dict[tuple[int, int], float] = {}
     along, _ = plan_axes(azimuth_deg)
     # How far along the line the measured wires reach.
@@ -1333,6 +1354,30 @@ def trace_wires(
     model_error = [
         _continuation_error(w, pts_in_world[w.point_indices], options.extend) for w in wires
     ]
+
+    def _past_unfixed(
+        w: FittedWire, own: F64, k: int, skip: Sequence[bool] = (False, False)
+    ) -> list[tuple[float, float]]:
+        """The next extensions of wire ``k`` past a stretch of it fewer than three views
+        see (``unfixed``), where its curve, continued, still predicts it within
+        ``max_sigma`` (where the look lands): beyond, three may see it again."""
+        first, last = _along_limits(w, reach)
+        out = []
+        for j in (0, 1):
+            if skip[j] or (k, j) not in unfixed or len(own) == 0:
+                continue
+            e = unfixed[k, j]
+            if j == 0:
+                a, b = max(e - options.extend, first), e
+            else:
+                a, b = e, min(e + options.extend, last)
+            if b - a < options.extend / 10:
+                continue  # at the limit along the line
+            # Where the look lands (the near end of the stretch it takes).
+            sig_a, sig_z = _prediction_sigma(w, own, np.array([e]), corr)
+            if np.hypot(sig_a[0], sig_z[0]) <= max_sigma:
+                out.append((a, b))
+        return out
 
     def _along_limits(w: FittedWire, limits: tuple[float, float]) -> tuple[float, float]:
         """The wire's ``s`` where it reaches the limits along the line."""
@@ -1418,6 +1463,16 @@ def trace_wires(
             removed = np.zeros(0, np.int64)
             ends_found = _ends_found(w, k, places, good, measurable) if round_ > 0 else []
             for j, side, found_share in ends_found:
+                fixable = int((side & measurable).sum())
+                if (
+                    side.any()
+                    and fixable < MIN_MEASURABLE_PLACES
+                    and np.median(_views_seeing(scene, places.pts[side])) < MIN_VIEWS
+                ):
+                    s_side = w.plane_coords(places.pts[side])[0]
+                    unfixed[k, j] = float(s_side.min() if j == 0 else s_side.max())
+                else:
+                    unfixed.pop((k, j), None)
                 limit = MIN_EXTEND_SHARE * base_share[k]
                 if np.isnan(found_share) or np.isnan(limit):
                     continue  # too few places to judge
@@ -1443,7 +1498,11 @@ def trace_wires(
                 if len(removed):
                     keep = w.point_indices[~np.isin(w.point_indices, removed)]
                     new_wires[k] = refit(w, all_pts, keep, along, wires_options)
-                new_ranges.append([])
+                new_ranges.append(
+                    _past_unfixed(new_wires[k], all_pts[new_wires[k].point_indices], k)
+                    if round_ > 0
+                    else []
+                )
                 continue
             base = len(all_pts)
             all_pts = np.r_[all_pts, pts[mine]]
@@ -1456,7 +1515,7 @@ def trace_wires(
                 s_new = w.plane_coords(pts[mine])[0]
                 own = all_pts[w.point_indices]
                 drop = np.zeros(len(mine), bool)
-                for side in (s_new < w.s_range[0], s_new > w.s_range[1]):
+                for j, side in enumerate((s_new < w.s_range[0], s_new > w.s_range[1])):
                     if side.sum() >= corr and (
                         _leaves_curve(
                             w, own, pts[mine][side], sigma[mine][side], corr, model_error[k]
@@ -1464,6 +1523,7 @@ def trace_wires(
                         > MAX_BEND
                     ):
                         drop |= side
+                        unfixed.pop((k, j), None)  # it bends away: no look beyond
                 idx = np.r_[w.point_indices, base + np.flatnonzero(~drop)]
                 idx = idx[~np.isin(idx, removed)]
                 for j, side in weak:
@@ -1475,10 +1535,15 @@ def trace_wires(
             # them, the insulators, arms and the next span's wires).
             first, last = _along_limits(fit, reach)
             ends = []
-            if round_ == 0 or lo < w.s_range[0] - options.extend / 2:
+            grew = [
+                round_ == 0 or lo < w.s_range[0] - options.extend / 2,
+                round_ == 0 or hi > w.s_range[1] + options.extend / 2,
+            ]
+            if grew[0]:
                 ends.append((max(lo - options.extend, first), lo))
-            if round_ == 0 or hi > w.s_range[1] + options.extend / 2:
+            if grew[1]:
                 ends.append((hi, min(hi + options.extend, last)))
+            ends += _past_unfixed(fit, all_pts[idx], k, skip=grew)
             new_ranges.append(ends)
             new_wires[k] = fit
             if round_ > 0 and logger.isEnabledFor(logging.DEBUG):

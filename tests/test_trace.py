@@ -9,11 +9,13 @@ import dataclasses
 
 import cv2
 import numpy as np
+import pycolmap
 import pytest
 
 from colmap_powerline.detect import DetectOptions, contrast_threshold, line_response
 from colmap_powerline.evaluate import distance_to_polyline
 from colmap_powerline.pipeline import crop_wire_mask
+from colmap_powerline.scene import Scene, SceneImage
 from colmap_powerline.synthetic import TrueWire, load_true_wires
 from colmap_powerline.trace import (
     MAX_BEND,
@@ -840,3 +842,69 @@ def test_the_median_along_the_curve_counts_between_the_wire_ends_only(nadir_view
     line = np.nanmedian(one[3][inside])
     assert np.abs(both[3][inside & found_both & ~found_one] - line).max() < 1.5
     assert np.array_equal(found_both[past], found_one[past])
+
+
+def _nadir_views(tmp_path, wire: FittedWire, xs: list[float], ys: list[float]) -> Scene:
+    """Nadir views 50 m up at ``xs`` along ``wire``'s plane (from its origin) × ``ys`` across
+    it, 600 × 900 px at a focal length of 1000 px (18 × 27 m at 20 m up, the long side
+    about across the wire), of noisy ground with the wire drawn dark, about a pixel wide."""
+    width, height, focal = 600, 900, 1000.0
+    camera = pycolmap.Camera(
+        model="PINHOLE", width=width, height=height,
+        params=[focal, focal, width / 2, height / 2], camera_id=1,
+    )  # fmt: skip
+    d = wire.plane_direction_xy
+    # Image u about along the wire (25° off it: a line along the pixel rows is measured with
+    # the rows' bias), v across it, looking down.
+    c, s = np.cos(np.radians(25.0)), np.sin(np.radians(25.0))
+    e = np.array([c * d[0] - s * d[1], s * d[0] + c * d[1]])
+    rot = np.array([[e[0], e[1], 0.0], [e[1], -e[0], 0.0], [0.0, 0.0, -1.0]])
+    rng = np.random.default_rng(0)
+    images = []
+    for k, (x, y) in enumerate((x, y) for y in ys for x in xs):
+        path = tmp_path / f"view{k}.png"
+        xy = wire.plane_origin_xy + x * d + y * np.array([-d[1], d[0]])
+        im = SceneImage(k + 1, path.name, path, camera, rot, -rot @ np.r_[xy, 50.0])
+        up = 4
+        line = np.zeros((height * up, width * up), np.float32)
+        uv, _, ok = im.project(wire.polyline(0.02))
+        cv2.polylines(line, [np.round((uv[ok] + 0.5) * up - 0.5).astype(np.int32)], False, 1.0, up)
+        grey = 128.0 - 40.0 * cv2.resize(line, (width, height), interpolation=cv2.INTER_AREA)
+        grey += rng.normal(0.0, 6.0, grey.shape)
+        cv2.imwrite(str(path), np.clip(grey, 0, 255).astype(np.uint8))
+        images.append(im)
+    return Scene(
+        tmp_path, tmp_path, tuple(images), np.zeros((1, 3)), np.zeros((1, 3), np.uint8),
+        np.zeros(1), np.full(1, 3),
+    )  # fmt: skip
+
+
+def test_tracing_looks_on_past_a_stretch_too_few_views_see(tmp_path):
+    """Views in three strips along a 60 m wire, with too few over its middle: fewer than
+    three see it over 14 m, none over its middle 2 m (the shared area survey's shields: the
+    stretches three views see lie 5-20 m apart). Tracing from a piece on one side looks on
+    past that stretch, while the curve continued predicts the wire within what a point must
+    be known to where it looks, and measures the wire on the other side; no point is made
+    where no two views see it."""
+    a = 60.0**2 / (8.0 * 1.0)
+    wire = FittedWire(
+        wire_id=0, plane_origin_xy=np.zeros(2), plane_direction_xy=np.array([0.9397, 0.3420]),
+        catenary_a=a, s0=0.0, z0=20.0 - a * (np.cosh(30.0 / a) - 1.0), s_range=(-30.0, 30.0),
+        point_indices=np.zeros(0, np.int64), rms_residual=0.0,
+    )  # fmt: skip
+    scene = _nadir_views(tmp_path, wire, [-27.0, -21.0, -15.0, 15.0, 21.0, 27.0], [-8, 0, 8])
+    s = np.arange(-30.0, 30.0, 0.1)
+    seen = sum(im.project(wire.points(s))[2].astype(int) for im in scene.images)
+    assert np.ptp(s[seen < 3]) > 12.0 and np.all(seen[np.abs(s) < 1.0] == 0)  # the set-up
+    piece, pts = _with_points([dataclasses.replace(wire, s_range=(-25.0, -12.0))])
+    beside = dataclasses.replace(wire, wire_id=1, plane_origin_xy=np.array([-2.7, 7.5]))
+    out, traced = _trace(scene, piece, pts, context=[beside])
+    mine = traced.pts_in_world[traced.wire_id == 0]
+    x = wire.plane_coords(mine)[0]
+    lonely = s[seen < 2]
+    assert not np.any((x > lonely.min()) & (x < lonely.max()))  # no two views see it there
+    far = mine[x > s[seen < 3].max()]
+    assert len(far) > 200 and np.ptp(wire.plane_coords(far)[0]) > 15.0  # measured past it
+    d = distance_to_polyline(far, wire.polyline(0.05))
+    assert np.median(d) < 0.02 and np.all(d < WiresOptions().inlier_distance)
+    assert out[0].s_range[1] > 25.0
