@@ -1515,7 +1515,7 @@ def trace_wires(
                 s_new = w.plane_coords(pts[mine])[0]
                 own = all_pts[w.point_indices]
                 drop = np.zeros(len(mine), bool)
-                for j, side in enumerate((s_new < w.s_range[0], s_new > w.s_range[1])):
+                for side in (s_new < w.s_range[0], s_new > w.s_range[1]):
                     if side.sum() >= corr and (
                         _leaves_curve(
                             w, own, pts[mine][side], sigma[mine][side], corr, model_error[k]
@@ -1523,7 +1523,6 @@ def trace_wires(
                         > MAX_BEND
                     ):
                         drop |= side
-                        unfixed.pop((k, j), None)  # it bends away: no look beyond
                 idx = np.r_[w.point_indices, base + np.flatnonzero(~drop)]
                 idx = idx[~np.isin(idx, removed)]
                 for j, side in weak:
