@@ -1502,6 +1502,29 @@ def _best_apart(cand: list[FittedWire], shares: list[float | None], bar: float) 
     return taken
 
 
+def _traced_in_full(
+    cand: list[FittedWire],
+    looked: list[WireSupport],
+    taken: list[int],
+    wires: list[FittedWire],
+    verified: VerifiedPoints,
+    scene: Scene,
+    corridor: WireCorridor,
+    options: ReconstructionOptions,
+    evident: bool = False,
+) -> tuple[list[FittedWire], list[WireSupport], VerifiedPoints, list[Path]]:
+    """The hypotheses ``taken`` (with their looks' supports), numbered after ``wires`` and
+    traced in full beside them (every view checked by the others; ``evident``: line evidence
+    shows them, :func:`trace_wires`)."""
+    n = len(wires)
+    new = [dataclasses.replace(cand[i], wire_id=n + j) for j, i in enumerate(taken)]
+    new_sup = [dataclasses.replace(looked[i], wire_id=n + j) for j, i in enumerate(taken)]
+    return _traced(
+        new, new_sup, verified, scene, corridor, options, context=wires,
+        min_redundancy=MIN_REDUNDANCY, evident=[True] * len(new) if evident else None,
+    )  # fmt: skip
+
+
 def _support_as_seen(
     wire: FittedWire,
     neighbour: FittedWire,
@@ -1611,13 +1634,9 @@ def _siblings(
     )
     if not taken:
         return wires, supports, verified, decoded
-    n = len(wires)
-    new = [dataclasses.replace(cand[i], wire_id=n + j) for j, i in enumerate(taken)]
-    new_sup = [dataclasses.replace(looked[i], wire_id=n + j) for j, i in enumerate(taken)]
-    new, new_sup, verified, dec = _traced(
-        new, new_sup, verified, scene, corridor, options, context=wires,
-        min_redundancy=MIN_REDUNDANCY,
-    )  # fmt: skip
+    new, new_sup, verified, dec = _traced_in_full(
+        cand, looked, taken, wires, verified, scene, corridor, options
+    )
     for j, i in enumerate(taken):
         new_sup[j] = _support_as_seen(
             new[j], wires[source[i]], new_sup[j].traced_share, verified, judge
@@ -1738,14 +1757,10 @@ def _faint_wires(
     )
     if not taken:
         return wires, supports, verified, decoded
-    n = len(wires)
     kept_from = [source[i] for i in taken]
-    new = [dataclasses.replace(cand[i], wire_id=n + j) for j, i in enumerate(taken)]
-    new_sup = [dataclasses.replace(looked[i], wire_id=n + j) for j, i in enumerate(taken)]
-    new, new_sup, verified, dec = _traced(
-        new, new_sup, verified, scene, corridor, options, context=wires,
-        min_redundancy=MIN_REDUNDANCY, evident=[True] * len(new),
-    )  # fmt: skip
+    new, new_sup, verified, dec = _traced_in_full(
+        cand, looked, taken, wires, verified, scene, corridor, options, evident=True
+    )
     decoded += dec
     for j in range(len(new)):
         # Its confidence: that no cell of the sweep reached its evidence by chance

@@ -875,17 +875,6 @@ def _checked_by_curve(
     return out, x_out, sigma_out
 
 
-def _views_seeing(scene: Scene, pts: F64) -> I64:
-    """(N,) how many of the scene's views see each point (inside the image), whatever
-    else lies near it there."""
-    n = np.zeros(len(pts), np.int64)
-    for view in scene.images:
-        near = np.flatnonzero(_roughly_in_view(view, pts))
-        if len(near):
-            n[near] += view.project(pts[near])[2]
-    return n
-
-
 def _measurable(sol: _Solution, sigma_px: float, max_sigma: float) -> npt.NDArray[np.bool_]:
     """The places the views would fix well enough had they all found the wire."""
     seen_ok = sol.seen >= MIN_VIEWS
@@ -1463,11 +1452,12 @@ def trace_wires(
             removed = np.zeros(0, np.int64)
             ends_found = _ends_found(w, k, places, good, measurable) if round_ > 0 else []
             for j, side, found_share in ends_found:
-                fixable = int((side & measurable).sum())
+                # Too few places the views would fix (its share unjudged), and fewer than
+                # three views see most of them at all (by the images' frames).
                 if (
                     side.any()
-                    and fixable < MIN_MEASURABLE_PLACES
-                    and np.median(_views_seeing(scene, places.pts[side])) < MIN_VIEWS
+                    and np.isnan(found_share)
+                    and np.median(scene.visibility(places.pts[side]).sum(axis=0)) < MIN_VIEWS
                 ):
                     s_side = w.plane_coords(places.pts[side])[0]
                     unfixed[k, j] = float(s_side.min() if j == 0 else s_side.max())
