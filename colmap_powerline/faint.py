@@ -12,6 +12,11 @@ of its places.
 
 So each line's cross-section is swept. Hypotheses are the line's longest wire moved across
 and up, with its sag changed (the catenary through its ends' heights, moved up as much).
+A line of several spans (a corridor tile holds 3-5) is swept along each stretch a confirmed
+wire covers that the sweeps before did not: the longest wire's first, then the longest of
+the rest that runs mostly past what is swept (:func:`sweep_refs`), each with the wires
+around its middle for its cross-section. On the real road flight the longest wire covers
+one span and 10 m of the next, and the other span's line evidence went unswept.
 Each is sampled along its stretch and projected into every view; its evidence is the mean
 normalised response over every sample every view sees of it (a view of an area survey sees
 a fifth of a span, one of a corridor most of it), with every confirmed wire's image masked
@@ -123,9 +128,10 @@ class _Lattice:
 class FaintHypothesis:
     """A wire the views' line evidence puts in the line's cross-section."""
 
-    wire: FittedWire  # without points, over the longest wire's stretch
+    wire: FittedWire  # without points, over its sweep's ref's stretch
     z_score: float  # its evidence in robust standard deviations of the sweep's
     cells: int  # how many hypotheses the sweep judged (both polarities)
+    ref_id: int  # the wire_id of the confirmed wire whose stretch was swept
 
 
 def _through_ends(ref: FittedWire, k: int) -> tuple[float, float, float]:
@@ -167,13 +173,46 @@ def _hypothesis(ref: FittedWire, across: float, dz: float, k: int) -> FittedWire
     )
 
 
+def _stretch(ref: FittedWire, w: FittedWire) -> tuple[float, float]:
+    """Where ``w`` runs along ``ref``'s plane (its ends' positions along it)."""
+    s, _, _ = ref.plane_coords(w.points(np.array(w.s_range)))
+    return float(s.min()), float(s.max())
+
+
+def _past(covered: Sequence[tuple[float, float]], lo: float, hi: float) -> float:
+    """How much of (lo, hi) lies outside every stretch in ``covered``."""
+    edges = np.unique(np.clip([lo, hi, *[v for c in covered for v in c]], lo, hi))
+    mids = 0.5 * (edges[1:] + edges[:-1])
+    out = np.ones(len(mids), bool)
+    for a, b in covered:
+        out &= (mids < a) | (mids > b)
+    return float(np.sum(np.diff(edges)[out]))
+
+
+def sweep_refs(wires: Sequence[FittedWire]) -> list[FittedWire]:
+    """The wires whose stretches are swept: the longest, then each next longest that runs
+    at least half its length past the stretches taken before (the next span's conductor
+    beside one traced across a pole; not a piece within a wire's stretch)."""
+    by_length = sorted(wires, key=lambda w: w.s_range[0] - w.s_range[1])
+    taken: list[FittedWire] = []
+    covered: list[tuple[float, float]] = []
+    for w in by_length:
+        lo, hi = _stretch(by_length[0], w)
+        if not taken or _past(covered, lo, hi) >= 0.5 * (hi - lo):
+            taken.append(w)
+            covered.append((lo, hi))
+    return taken
+
+
 def _cross_section(ref: FittedWire, wires: Sequence[FittedWire]) -> tuple[F64, F64]:
     """The swept offsets from the ref: across (A,) ``STEP_ACROSS`` apart and up (Z,)
-    ``STEP`` apart."""
+    ``STEP`` apart, around the wires whose middles lie along the ref's stretch."""
     across = []
     up = []
     for w in wires:
-        _, a, dz = ref.plane_coords(w.points(np.array([0.5 * sum(w.s_range)])))
+        s, a, dz = ref.plane_coords(w.points(np.array([0.5 * sum(w.s_range)])))
+        if w is not ref and not ref.s_range[0] <= s[0] <= ref.s_range[1]:
+            continue
         across.append(float(a[0]))
         up.append(float(dz[0]))
     a_lo, a_hi = min(across) - MARGIN_ACROSS, max(across) + MARGIN_ACROSS
@@ -361,10 +400,27 @@ def faint_hypotheses(
     num_threads: int = 2,
 ) -> tuple[list[FaintHypothesis], list[Path]]:
     """Wires of the line the views' line evidence puts in its cross-section, apart from the
-    confirmed ``wires`` (module docstring), best first; and the images decoded."""
-    if not wires:
-        return [], []
-    ref = max(wires, key=lambda w: w.s_range[1] - w.s_range[0])
+    confirmed ``wires`` (module docstring): each sweep's best first, the sweeps in the order
+    of :func:`sweep_refs`; and the images decoded (each once)."""
+    out: list[FaintHypothesis] = []
+    decoded: dict[Path, None] = {}
+    for ref in sweep_refs(wires):
+        hyps, dec = _sweep(scene, ref, wires, detect, min_z, num_threads)
+        out += hyps
+        decoded.update(dict.fromkeys(dec))
+    return out, list(decoded)
+
+
+def _sweep(
+    scene: Scene,
+    ref: FittedWire,
+    wires: Sequence[FittedWire],
+    detect: DetectOptions,
+    min_z: float,
+    num_threads: int,
+) -> tuple[list[FaintHypothesis], list[Path]]:
+    """The hypotheses of the sweep along ``ref``'s stretch, best first; and the images
+    decoded."""
     across, up = _cross_section(ref, wires)
     s = np.linspace(*ref.s_range, NUM_SAMPLES)
     heights = _sag_heights(ref, s)
@@ -451,7 +507,7 @@ def faint_hypotheses(
             if cell[b, c] > best:
                 best, where = float(cell[b, c]), (float(a[b]), float(u[c]), kk)
         hyp = _hypothesis(ref, *where)
-        out.append(FaintHypothesis(hyp, float(z_all[p, i, j, k]), n_cells))
+        out.append(FaintHypothesis(hyp, float(z_all[p, i, j, k]), n_cells, ref.wire_id))
         logger.info(
             "faint: %s line evidence %.1f sd at %.2f across and %.2f up from wire %d's ends "
             "(sag %+.1f), in %d views",

@@ -1149,15 +1149,7 @@ def reconstruct_corridor(
         )
         candidates = [trimmed[k] or w if k in trimmed else w for k, w in enumerate(candidates)]
         supports = judge(candidates)
-    # Long wires the views' hit rates reject, above the ground: tracing gives them a second
-    # look (a shorter piece may be a support's member, straight and really there).
-    rejected = [
-        (w, s)
-        for w, s in zip(candidates, supports, strict=True)
-        if not options.support.accepts(s.confidence)
-        and s.height_above_ground >= options.triangulate.min_wire_height
-        and w.s_range[1] - w.s_range[0] >= options.wires.max_gap
-    ]
+    rejected = _for_a_second_look(candidates, supports, options)
     on_ground = sum(s.height_above_ground < options.triangulate.min_wire_height for s in supports)
     n_candidates = len(candidates)
     kept, supports = keep_supported(
@@ -1365,6 +1357,23 @@ def _traced(
         verified.with_traced(traced.pts_in_world, traced.views),
         traced.decoded,
     )
+
+
+def _for_a_second_look(
+    candidates: list[FittedWire], supports: list[WireSupport], options: ReconstructionOptions
+) -> list[tuple[FittedWire, WireSupport]]:
+    """The wires the views' hit rates reject that tracing looks at again
+    (:func:`_second_look`): above the ground, and at least twice the shortest wire long (a
+    support's member found so goes with the members after tracing). On the real road flight
+    the span past the last pole was all in such pieces, 10-14 m, which one strip's hit
+    rates reject; 25 m was asked before, and the span was lost."""
+    return [
+        (w, s)
+        for w, s in zip(candidates, supports, strict=True)
+        if not options.support.accepts(s.confidence)
+        and s.height_above_ground >= options.triangulate.min_wire_height
+        and w.s_range[1] - w.s_range[0] >= 2 * options.wires.min_length
+    ]
 
 
 def _second_look(
@@ -1677,8 +1686,8 @@ def _faint_wires(
     shared multispan seed 3 a hypothesis 1.3 m off span 1's unmeasurable shields was found
     at 21 %, the soil seed 11 shield at 55 %), ``FAINT_CHANCE_RATIO`` times as often as its
     copies moved across, and no confirmed wire lies along most of it, then traced in full.
-    Its support is measured as the pairs that measured the line's longest wire would see it,
-    as a sibling's is."""
+    Its support is measured as the pairs that measured the wire whose stretch its sweep
+    covered would see it, as a sibling's is."""
     if not options.trace.faint or not options.trace.enabled or not wires:
         return wires, supports, verified, []
     hyps, decoded = faint_hypotheses(
@@ -1688,9 +1697,10 @@ def _faint_wires(
     cand = [dataclasses.replace(hyps[i].wire, wire_id=g) for g, i in enumerate(source)]
     if not cand:
         return wires, supports, verified, decoded
-    ref = max(range(len(wires)), key=lambda k: wires[k].s_range[1] - wires[k].s_range[0])
+    # Each look is judged by tracing alone: the support it starts with is a placeholder.
+    longest = max(range(len(wires)), key=lambda k: wires[k].s_range[1] - wires[k].s_range[0])
     look = dataclasses.replace(options.trace, max_rounds=0)
-    sup = [dataclasses.replace(supports[ref], wire_id=g) for g in range(4 * len(cand))]
+    sup = [dataclasses.replace(supports[longest], wire_id=g) for g in range(4 * len(cand))]
 
     def looks(hs: list[FittedWire]) -> tuple[list[FittedWire], list[WireSupport]]:
         fitted, out, _, dec = _traced(
@@ -1766,6 +1776,7 @@ def _faint_wires(
         # Its confidence: that no cell of the sweep reached its evidence by chance
         # (Bonferroni over the cells), the detector's hit rates being blind to it.
         hyp = hyps[kept_from[j]]
+        ref = next(k for k, w in enumerate(wires) if w.wire_id == hyp.ref_id)
         new_sup[j] = dataclasses.replace(
             _support_as_seen(new[j], wires[ref], new_sup[j].traced_share, verified, judge),
             found_by="line evidence",

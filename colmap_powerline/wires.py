@@ -89,6 +89,13 @@ def catenary_mid(d: F64, k: float, a: float, z_m: float) -> F64:
     return z_m + d * np.sinh(a + x) * shc
 
 
+# The most a catenary may curve (1 / a, per model unit; a >= 20 m at metre scale): a wire
+# 60 m long would sag 22 m, which no overhead wire does. A fit that takes all of it wanted
+# more: its points are no wire's (on the real road flight, a 7 m piece whose heights mixed
+# a lower cable's with a conductor's, which tracing then carried up onto the conductor).
+MAX_CURVATURE = 0.05
+
+
 def fit_catenary(
     s: F64, z: F64, f_scale: float = 0.03, loss: str = "soft_l1"
 ) -> tuple[float, float, float, F64]:
@@ -108,7 +115,7 @@ def fit_catenary(
     s_m = float(np.mean(s))
     d = s - s_m
     c2, c1, c0 = np.polyfit(d, z, 2)
-    k_min, k_max, a_max = 1e-7, 0.05, 1.0
+    k_min, k_max, a_max = 1e-7, MAX_CURVATURE, 1.0
 
     def residual(x: F64) -> F64:
         return catenary_mid(d, x[0], x[1], x[2]) - z
@@ -237,6 +244,8 @@ def _fit(pts: F64, idx: I64, azimuth_xy: F64, options: WiresOptions) -> FittedWi
         a, s0, z0, res_z = fit_catenary(s_plane, p[:, 2])
     except ValueError:
         return None
+    if a * MAX_CURVATURE < 1.001:
+        return None  # curved as much as a catenary may: not a wire's points
     across = offsets_across(p[:, :2], origin, direction)
     dist = np.hypot(across, res_z)
     inl = dist < options.inlier_distance

@@ -96,6 +96,18 @@ def test_short_sloping_piece_is_fitted_closely():
     assert np.abs(fitted - true).max() < 0.02 and np.sqrt(np.mean(res**2)) < 0.025
 
 
+def test_points_more_curved_than_any_wire_are_not_a_wire():
+    """A 7 m piece whose heights bend the way no overhead wire hangs (a = 12 m: 60 m of it
+    would sag 37 m; on the real road flight, a piece mixing a lower cable's heights with a
+    conductor's) is not fitted as a wire; the same piece hanging as wires do is."""
+    rng = np.random.default_rng(3)
+    s = np.linspace(0.0, 7.0, 300)
+    for a, is_wire in ((12.0, False), (500.0, True)):
+        z = 20.0 + a * (np.cosh((s - 3.5) / a) - 1.0) + rng.normal(0.0, 0.02, len(s))
+        pts = np.c_[s, rng.normal(0.0, 0.02, len(s)), z]
+        assert len(split_wires(pts, 90.0)) == int(is_wire)
+
+
 def test_split_without_azimuth_hint(truth):
     pts = _noisy_points(truth, np.random.default_rng(2), gaps=False)
     assert len(split_wires(pts)) == 8
