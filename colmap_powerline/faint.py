@@ -206,13 +206,14 @@ def sweep_refs(wires: Sequence[FittedWire]) -> list[FittedWire]:
 
 def _cross_section(ref: FittedWire, wires: Sequence[FittedWire]) -> tuple[F64, F64]:
     """The swept offsets from the ref: across (A,) ``STEP_ACROSS`` apart and up (Z,)
-    ``STEP`` apart, around the wires whose middles lie along the ref's stretch."""
+    ``STEP`` apart, around the wires that run along some of the ref's stretch."""
     across = []
     up = []
     for w in wires:
-        s, a, dz = ref.plane_coords(w.points(np.array([0.5 * sum(w.s_range)])))
-        if w is not ref and not ref.s_range[0] <= s[0] <= ref.s_range[1]:
+        lo, hi = _stretch(ref, w)
+        if hi < ref.s_range[0] or lo > ref.s_range[1]:
             continue
+        _, a, dz = ref.plane_coords(w.points(np.array([0.5 * sum(w.s_range)])))
         across.append(float(a[0]))
         up.append(float(dz[0]))
     a_lo, a_hi = min(across) - MARGIN_ACROSS, max(across) + MARGIN_ACROSS
