@@ -925,8 +925,8 @@ def _placed(
     options: SpanOptions,
 ) -> Spans:
     """Chainage along each line, the supports numbered along it, each wire's span between
-    them, its attachments (its fitted curve extended to them), the supports' heights and
-    wires, and the conductors."""
+    them, its attachments (its fitted curve extended or cut back to them), the supports'
+    heights and wires, and the conductors."""
     out, out_legs = work.wires, work.legs
     chainage = _chainages(axes, merged, line_of_leg, out, out_legs)
     sup_ch = [chainage[m[0][0]](m[1]) for m in merged]
@@ -991,7 +991,9 @@ def _placed(
             if s_att is None:
                 continue
             side = 0 if s_att < 0.5 * (w.s_range[0] + w.s_range[1]) else 1
-            s_lo, s_hi = (min(s_lo, s_att), s_hi) if side == 0 else (s_lo, max(s_hi, s_att))
+            # Extended to it, or cut back to it: past its attachment (by less than
+            # ``support_radius``, else the wire was cut there) a curve is the next span's.
+            s_lo, s_hi = (s_att, s_hi) if side == 0 else (s_lo, s_att)
             at_end[side] = sid
             attached.setdefault(sid, []).append((k, w.points(np.array([s_att]))[0]))
         out[k] = dataclasses.replace(w, s_range=(float(s_lo), float(s_hi)))

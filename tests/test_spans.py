@@ -178,6 +178,43 @@ def test_supports_spans_and_conductors_of_a_line(turn_deg):
     assert all(sorted(v) == [1, 2, 3, 4] for v in by_conductor.values())
 
 
+def test_a_wire_carried_a_little_past_its_support_ends_at_its_attachment():
+    """Every conductor measured span by span, and span 2's top conductor carried 3 m past
+    the support at x = 0 (tracing past a pole takes the next span's wire, nearly in line,
+    until it bends away): too little to be cut there (4 m), so the tail was kept and the
+    wire was written and drawn 3 m past the pole. It ends at its attachment now, as the
+    wires that stop short of it are extended to theirs."""
+    rng = np.random.default_rng(1)
+    towers, _ = _towers(0.0)
+    pts, idx_of = [], []
+    n = 0
+    for c, z in PHASES:
+        for k in range(4):
+            a, b = np.r_[towers[k] + (0.0, -c), z], np.r_[towers[k + 1] + (0.0, -c), z]
+            p = _span_points(a, b, 900.0, rng)
+            if (c, z, k) == (PHASES[2][0], PHASES[2][1], 1):
+                nxt = _span_points(
+                    b, np.r_[towers[k + 2] + (0.0, -c), z], 900.0, rng, keep=(0.0, 0.0)
+                )
+                p = np.r_[p, nxt[nxt[:, 0] < b[0] + 3.0]]
+            pts.append(p)
+            idx_of.append(np.arange(n, n + len(p)))
+            n += len(p)
+    pts = np.concatenate(pts)
+    wires = [_wire(pts, idx, np.array([1.0, 0.0]), k) for k, idx in enumerate(idx_of)]
+    carried = wires[4 * 2 + 1]
+    assert carried.points(np.array(carried.s_range))[:, 0].max() > 2.5
+    sp = find_spans(_views(220.0), _flat, wires, [0] * len(wires), [_corridor(90.0)], pts)
+    assert len(sp.supports) == 5
+    x_ends = np.array([w.points(np.array(w.s_range))[:, 0] for w in sp.wires])
+    inner = [t[0] for t in towers[1:4]]
+    near_inner = np.min(np.abs(x_ends[..., None] - np.array(inner)), axis=-1)
+    # At an attachment: within half a metre of an inner tower, or at a line's end (where
+    # the wires' measurements end, 2 m short of the end towers).
+    at_end = np.abs(np.abs(x_ends) - 180.0) < 2.5
+    assert np.all((near_inner < 0.5) | at_end), x_ends
+
+
 def test_a_straight_line_s_conductors_are_split_into_one_wire_per_span():
     # Measured to within half a metre of the attachments, one conductor's spans of a
     # straight line touch at each support: the voxel chains join them, and one curve holds
