@@ -14,9 +14,9 @@ So each line's cross-section is swept. Hypotheses are the line's longest wire mo
 and up, with its sag changed (the catenary through its ends' heights, moved up as much).
 A line of several spans (a corridor tile holds 3-5) is swept along each stretch a confirmed
 wire covers that the sweeps before did not: the longest wire's first, then the longest of
-the rest that runs mostly past what is swept (:func:`sweep_refs`), each with the wires
-around its middle for its cross-section. On the real road flight the longest wire covers
-one span and 10 m of the next, and the other span's line evidence went unswept.
+the rest that runs mostly past what is swept (:func:`sweep_refs`), each across the wires
+that run along some of its stretch. On the real road flight the longest wire covers one
+span and 10 m of the next, and the other spans' line evidence went unswept.
 Each is sampled along its stretch and projected into every view; its evidence is the mean
 normalised response over every sample every view sees of it (a view of an area survey sees
 a fifth of a span, one of a corridor most of it), with every confirmed wire's image masked
