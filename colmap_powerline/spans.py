@@ -16,6 +16,13 @@ where the wires say so, in three ways:
   terminal tower). Wires that end where the images end have left the survey, and no
   support is made up for them.
 
+Before that, two wires of one line that touch in one vertical plane are put right: two
+wires never cross, so along each stretch between their crossings one of them is not there.
+Past a support the conductor runs on in plan, and views from above match it at another
+height there, so one span's wire is often carried far into the next span's plane. The
+views that see the two curves apart (beside the plane) show which one is the wire; the
+other gives up that stretch.
+
 Kinks and meetings within ``support_radius`` along the line are one support; supports of
 two corridors (the legs of a line on either side of an angle tower) within twice that in
 plan are one angle support, and the legs are one line. Each wire is then cut at every
@@ -23,7 +30,8 @@ support it runs across, numbered by span along its line, extended to its attachm
 supports it hangs between: the tips of the insulators, where the curves meet) and linked
 to the same conductor in the next span (attachments within ``same_conductor_m``).
 
-Everything here works on fitted wires and their points; no image is read.
+Everything here works on fitted wires and their points; images are read only to tell two
+wires in one plane apart and to see whether wires go on past where they end.
 """
 
 from __future__ import annotations
@@ -517,6 +525,166 @@ def _continues(
     return going >= shown / 2
 
 
+# Two wires' image curves at least this far apart (px) are told apart by their ridges (each
+# ridge is read within 1.5 px of its curve, and the grey beside it 2.5-3 px out).
+MIN_APART_PX = 6.0
+# A stretch of two wires in one plane shorter than this (model units) is left to both.
+MIN_CONFLICT_M = 1.0
+
+
+def _told_apart(views: Sequence, a: F64, b: F64, greys: dict[Path, np.ndarray]) -> tuple[int, int]:
+    """How many views show the 3D curve ``a`` (M, 3) as the plainer line than ``b``, and
+    how many ``b``: read where a view sees both (at least 10 px of them) at least
+    MIN_APART_PX apart (views from above a wire's plane see two curves in it on one line;
+    oblique ones part them), the farthest apart first, at most MAX_CONTINUATION_VIEWS;
+    the ridges' contrast over their backgrounds compared, where either is a line."""
+    ranked = []
+    for v in views:
+        (ua, _, oka), (ub, _, okb) = v.project(a), v.project(b)
+        both = oka & okb
+        if both.sum() < 2:
+            continue
+        ua, ub = ua[both], ub[both]
+        if np.ptp(ua[:, 0]) + np.ptp(ua[:, 1]) < 10:
+            continue
+        apart = float(np.median(np.linalg.norm(ua - ub, axis=1)))
+        if apart >= MIN_APART_PX:
+            ranked.append((apart, v, ua, ub))
+    ranked.sort(key=lambda r: -r[0])
+    votes = [0, 0]
+    for _, v, ua, ub in ranked[:MAX_CONTINUATION_VIEWS]:
+        if v.path not in greys:
+            if len(greys) >= 2 * MAX_CONTINUATION_VIEWS:  # a few images in memory, at most
+                del greys[next(iter(greys))]
+            greys[v.path] = read_image(v.path, cv2.IMREAD_GRAYSCALE).astype(np.float32)
+        (pa, sa), (pb, sb) = _ridge(greys[v.path], ua), _ridge(greys[v.path], ub)
+        ea, eb = abs(pa) / sa, abs(pb) / sb
+        if max(ea, eb) >= RIDGE_SIGMAS:
+            votes[int(eb > ea)] += 1
+    return votes[0], votes[1]
+
+
+def _one_per_plane(
+    work: _Work,
+    axes: list[_Leg],
+    views: Sequence,
+    pts_in_world: F64,
+    options: SpanOptions,
+    wires_options: WiresOptions,
+    max_across: float,
+) -> None:
+    """Two wires of one leg whose curves touch in one vertical plane (within ``max_across``
+    across and in height somewhere along the stretch both measure) cannot both hang there:
+    two wires never cross, and a cable below a conductor stays metres below it. It happens
+    where a wire is carried past a support: beyond it the conductor runs on in plan, and
+    where the views see the line from above it matches at another height, on the next
+    span's wire in plan. Each stretch between the curves' crossings, where they lie apart,
+    goes to the wire the views that part them show (:func:`_told_apart`); the other loses
+    its points there and is refitted to the rest (left out when too little is left).
+    Stretches shorter than ``support_radius`` are left alone: a support's two spans
+    meet in a bend, each carried a little past it."""
+    greys: dict[Path, np.ndarray] = {}
+    out = work.wires
+    changed = True
+    while changed:
+        changed = False
+        for i in range(len(out)):
+            for j in range(i + 1, len(out)):
+                if work.legs[i] != work.legs[j]:
+                    continue
+                leg = axes[work.legs[i]]
+                lo = max(leg.ends_u(out[i])[0], leg.ends_u(out[j])[0])
+                hi = min(leg.ends_u(out[i])[1], leg.ends_u(out[j])[1])
+                if hi - lo < options.support_radius:
+                    continue
+                u = np.linspace(lo, hi, int((hi - lo) / 0.25) + 2)
+                ci, zi = leg.curve(out[i], u)
+                cj, zj = leg.curve(out[j], u)
+                dz = zi - zj
+                if np.max(np.abs(ci - cj)) > max_across or np.min(np.abs(dz)) > max_across:
+                    continue
+                loser = _stretches_lost(out[i], out[j], leg, u, dz, max_across, views, greys)
+                if not loser:
+                    continue
+                which, lost = loser
+                changed = _give_up(
+                    work, (i, j)[which], lost, leg, pts_in_world, options, wires_options
+                )
+                if changed:
+                    break
+            if changed:
+                break
+
+
+def _stretches_lost(
+    a: FittedWire,
+    b: FittedWire,
+    leg: _Leg,
+    u: F64,
+    dz: F64,
+    max_apart: float,
+    views: Sequence,
+    greys: dict[Path, np.ndarray],
+) -> tuple[int, tuple[float, float]] | None:
+    """The first of two wires in one plane (0: ``a``, 1: ``b``; ``dz``: their heights'
+    difference at ``u`` along the leg) that the views do not show between two of their
+    crossings, and that stretch (along the leg); None when no view tells them apart. Each
+    stretch is read where they lie more than ``max_apart`` apart (nearer the crossing the
+    views cannot tell them) and goes to one of them up to the crossings."""
+    sign = np.sign(dz)
+    cuts = np.flatnonzero(sign[1:] != sign[:-1]) + 1
+    for s, e in zip(np.r_[0, cuts], np.r_[cuts, len(u)], strict=True):
+        part = np.arange(s, e)[np.abs(dz[s:e]) > max_apart]
+        if len(part) < 2 or u[part[-1]] - u[part[0]] < MIN_CONFLICT_M:
+            continue
+        uu = u[part]
+        va, vb = _told_apart(
+            views, a.points(leg.s_along(a, uu)), b.points(leg.s_along(b, uu)), greys
+        )
+        if va == vb:
+            continue
+        return int(va > vb), (float(u[s]), float(u[e - 1]))
+    return None
+
+
+def _give_up(
+    work: _Work,
+    k: int,
+    lost: tuple[float, float],
+    leg: _Leg,
+    pts_in_world: F64,
+    options: SpanOptions,
+    wires_options: WiresOptions,
+) -> bool:
+    """Wire ``k`` of ``work`` without its points in the ``lost`` stretch (along the leg):
+    refitted to the longer side of the rest, or left out when that is no wire. False when
+    it has no points to give up there."""
+    w = work.wires[k]
+    idx = w.point_indices
+    u = leg.u(pts_in_world[idx, :2])
+    rest = max(idx[u < lost[0]], idx[u > lost[1]], key=len)
+    if len(rest) == len(idx):
+        return False
+    kept = None
+    if len(rest) >= wires_options.min_points:
+        kept = refit(w, pts_in_world, rest, leg.direction, wires_options)
+        if kept is w or np.ptp(leg.ends_u(kept)) < options.min_piece_m:
+            kept = None
+    logger.info(
+        "spans: wire %d lies in one plane with another wire and the views show the other "
+        "along %.1f-%.1f: %s",
+        w.wire_id,
+        *lost,
+        "left out" if kept is None else "those points left out",
+    )
+    if kept is None:
+        del work.wires[k], work.source[k], work.legs[k]
+    else:
+        work.wires[k] = kept
+    work.cut_ids.add(w.wire_id)
+    return True
+
+
 def _measurable(views: Sequence, at: F64, leg: _Leg, crossing_offset: float) -> bool:
     """Whether the views could measure a wire at ``at`` along the leg: three of them see
     it, from two positions across it (tracing's rule, and the coverage report's)."""
@@ -588,6 +756,7 @@ def find_spans(
     # 1-2. Kinks in a wire and pieces meeting across a gap; one support per cluster of them
     # along a leg.
     cands = _kinks(work, wires, legs, axes, pts_in_world, options, wires_options)
+    _one_per_plane(work, axes, views, pts_in_world, options, wires_options, max_across)
     cands += _meetings(work, axes, options, max_across)
     found = _clustered(cands, len(axes), options)
     found = _not_run_through(found, work, axes, pts_in_world, options, wires_options)

@@ -386,3 +386,75 @@ def test_a_support_topped_by_a_conductor_where_the_line_has_shields_is_said(capl
     assert [s.to_json()["top_from"] for s in out] == ["shield", "conductor"]
     said = [r.getMessage() for r in caplog.records]
     assert len(said) == 1 and said[0].startswith("support 1 (line 1)")
+
+
+def _drawn_views(tmp_path, truth: list[np.ndarray], places, rng) -> list:
+    """Nadir views 50 m up at ``places`` (x, y), 90° across (a pixel is 8 cm at 25 m), of
+    noisy grey ground with the ``truth`` curves (dense 3D points) drawn a pixel wide."""
+    import cv2
+    import pycolmap
+
+    from colmap_powerline.scene import SceneImage
+
+    f, size = 300.0, 600
+    camera = pycolmap.Camera(
+        model="PINHOLE", width=size, height=size, params=[f, f, size / 2, size / 2], camera_id=1
+    )
+    rot = np.diag([1.0, -1.0, -1.0])  # world x is image u, world y image -v
+    views = []
+    for k, (x, y) in enumerate(places):
+        path = tmp_path / f"view{k}.png"
+        im = SceneImage(k + 1, path.name, path, camera, rot, -rot @ np.array([x, y, 50.0]))
+        line = np.zeros((size * 4, size * 4), np.float32)  # drawn at 4x, averaged down
+        for p in truth:
+            uv, _, ok = im.project(p)
+            q = np.round((uv[ok] + 0.5) * 4 - 0.5).astype(np.int32)
+            if len(q) > 1:
+                cv2.polylines(line, [q], False, 1.0, thickness=4)
+        grey = 128.0 + 60.0 * cv2.resize(line, (size, size), interpolation=cv2.INTER_AREA)
+        grey += rng.normal(0.0, 6.0, grey.shape)
+        cv2.imwrite(str(path), np.clip(grey, 0, 255).astype(np.uint8))
+        views.append(im)
+    return views
+
+
+def test_a_wire_carried_far_past_its_support_in_the_next_span_s_plane_gives_that_stretch_up(
+    tmp_path, caplog
+):
+    # Two conductors 3 m apart hang in two spans from a support at x = 0 (the outer supports
+    # lie outside the images). One conductor's first-span wire carries 25 m of points past
+    # the support, on its own curve continued, in the plane of its second-span wire (as
+    # matches in views from above put them). Cut at the support, such a tail runs on
+    # smoothly, and the old code left the whole wire out as a false pairing. The views
+    # beside the plane show the second span's wire there, not the tail: the tail is left
+    # out, the wire kept, and the support found where the pieces meet.
+    rng = np.random.default_rng(3)
+    a_cat = 600.0
+    ends = {(y, k): (np.array([60.0 * k - 60.0, y, 30.0]), np.array([60.0 * k, y, 30.0]))
+            for y in (0.0, 3.0) for k in (0, 1)}  # fmt: skip
+    truth = [_span_points(a, b, a_cat, rng, step=0.02, noise=0.0, keep=(0.0, 0.0))
+             for a, b in ends.values()]  # fmt: skip
+    places = [(x, y) for y in (-12.0, 0.0, 14.0) for x in (-5.0, 8.0, 20.0)]
+    views = _drawn_views(tmp_path, truth, places, rng)
+    pts, wires, n = [], [], 0
+    for j, ((y, k), (a, b)) in enumerate(ends.items()):
+        p = _span_points(a, b, a_cat, rng)
+        if (y, k) == (0.0, 0):
+            d = 60.0 + np.linspace(2.0, 25.0, 1200)  # along the plane from x = -60
+            z = 30.0 + a_cat * (np.cosh((d - 30.0) / a_cat) - np.cosh(30.0 / a_cat))
+            tail = np.c_[d - 60.0, np.zeros_like(d), z] + rng.normal(0, 0.02, (len(d), 3))
+            p = np.r_[p, tail]
+        pts.append(p)
+        idx = np.arange(n, n + len(p))
+        n += len(p)
+        wires.append(_wire(np.concatenate(pts), idx, np.array([1.0, 0.0]), j))
+    pts = np.concatenate(pts)
+    with caplog.at_level("INFO", logger="colmap_powerline.spans"):
+        sp = find_spans(views, _flat, wires, [0] * 4, [_corridor(90.0)], pts)
+    assert "wire 0 lies in one plane with another wire and the views show the other" in caplog.text
+    assert len(sp.supports) == 1
+    assert abs(sp.supports[0].position[0]) < 0.5  # (midway between the conductors across)
+    assert len(sp.wires) == 4
+    for w in sp.wires:  # each wire hangs on one side of the support
+        x = w.points(np.array(w.s_range))[:, 0]
+        assert x.max() <= 0.5 or x.min() >= -0.5
