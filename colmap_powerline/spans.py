@@ -359,6 +359,10 @@ def _pieces_meet(
     k = int(np.argmin(np.abs(u - t)))
     if abs(ca[k] - cb[k]) > max_across:
         return None
+    # Neither curve carried farther than half the gap allowed: a curve continued far from
+    # its points is a guess (a cable under a conductor, continued 25 m, met it).
+    if max(t - a_hi, b_lo - t) > options.max_meeting_gap / 2:
+        return None
     return t
 
 
@@ -532,12 +536,25 @@ MIN_APART_PX = 6.0
 MIN_CONFLICT_M = 1.0
 
 
+def _off_curve(pts: F64, curve: F64) -> F64:
+    """(N,) distance of each of the points (N, 2) from the polyline ``curve`` (M, 2): apart
+    across it, not along (a view in a wire's plane sees all its curves on one line)."""
+    a, b = curve[:-1], curve[1:]
+    ab = b - a
+    t = np.einsum("nmk,mk->nm", pts[:, None, :] - a[None], ab) / np.maximum(
+        np.einsum("mk,mk->m", ab, ab), 1e-12
+    )
+    foot = a[None] + np.clip(t, 0.0, 1.0)[..., None] * ab[None]
+    return np.linalg.norm(pts[:, None, :] - foot, axis=2).min(axis=1)
+
+
 def _told_apart(views: Sequence, a: F64, b: F64, greys: dict[Path, np.ndarray]) -> tuple[int, int]:
-    """How many views show the 3D curve ``a`` (M, 3) as the plainer line than ``b``, and
-    how many ``b``: read where a view sees both (at least 10 px of them) at least
-    MIN_APART_PX apart (views from above a wire's plane see two curves in it on one line;
-    oblique ones part them), the farthest apart first, at most MAX_CONTINUATION_VIEWS;
-    the ridges' contrast over their backgrounds compared, where either is a line."""
+    """How many views show a line along the 3D curve ``a`` (M, 3) and none along ``b``, and
+    how many the reverse: read where a view sees both (at least 10 px of them) at least
+    MIN_APART_PX apart across (views from above a wire's plane see two curves in it on one
+    line; oblique ones part them), the farthest apart first, at most
+    MAX_CONTINUATION_VIEWS. A view that shows both, or neither, does not say (where
+    neither curve is the wire, neither shows)."""
     ranked = []
     for v in views:
         (ua, _, oka), (ub, _, okb) = v.project(a), v.project(b)
@@ -547,7 +564,7 @@ def _told_apart(views: Sequence, a: F64, b: F64, greys: dict[Path, np.ndarray]) 
         ua, ub = ua[both], ub[both]
         if np.ptp(ua[:, 0]) + np.ptp(ua[:, 1]) < 10:
             continue
-        apart = float(np.median(np.linalg.norm(ua - ub, axis=1)))
+        apart = float(np.median(_off_curve(ub, ua)))
         if apart >= MIN_APART_PX:
             ranked.append((apart, v, ua, ub))
     ranked.sort(key=lambda r: -r[0])
@@ -558,9 +575,9 @@ def _told_apart(views: Sequence, a: F64, b: F64, greys: dict[Path, np.ndarray]) 
                 del greys[next(iter(greys))]
             greys[v.path] = read_image(v.path, cv2.IMREAD_GRAYSCALE).astype(np.float32)
         (pa, sa), (pb, sb) = _ridge(greys[v.path], ua), _ridge(greys[v.path], ub)
-        ea, eb = abs(pa) / sa, abs(pb) / sb
-        if max(ea, eb) >= RIDGE_SIGMAS:
-            votes[int(eb > ea)] += 1
+        shows_a, shows_b = abs(pa) >= RIDGE_SIGMAS * sa, abs(pb) >= RIDGE_SIGMAS * sb
+        if shows_a != shows_b:
+            votes[int(shows_b)] += 1
     return votes[0], votes[1]
 
 
@@ -581,8 +598,8 @@ def _one_per_plane(
     span's wire in plan. Each stretch between the curves' crossings, where they lie apart,
     goes to the wire the views that part them show (:func:`_told_apart`); the other loses
     its points there and is refitted to the rest (left out when too little is left).
-    Stretches shorter than ``support_radius`` are left alone: a support's two spans
-    meet in a bend, each carried a little past it."""
+    Overlaps shorter than ``support_radius`` are left alone: a support's two spans meet in
+    a bend, each carried a little past it."""
     greys: dict[Path, np.ndarray] = {}
     out = work.wires
     changed = True
@@ -778,6 +795,7 @@ def find_spans(
         else (li, u, how, ids)
         for li, u, how, ids in found
     ]
+    found = _one_per_place(found, options)
     # 5. Supports of two legs at one place: an angle support, and the legs one line.
     located = _located(work, axes, found, options, max_across)
     line_of_leg, line_ids = _lines(work, len(axes), located)
@@ -848,6 +866,25 @@ def _clustered(cands: list[_Candidate], n_legs: int, options: SpanOptions) -> li
                 )
             )
     return found
+
+
+def _one_per_place(found: list[_Found], options: SpanOptions) -> list[_Found]:
+    """Supports of one leg placed again within ``support_radius`` of each other (two
+    places where pieces met, each moved to where the pieces cut there meet) are one."""
+    out: list[_Found] = []
+    for li, u, how, ids in sorted(found, key=lambda f: (f[0], f[1])):
+        last = out[-1] if out else None
+        if (
+            last is not None
+            and last[0] == li
+            and "wires ending" not in (how, last[2])
+            and u - last[1] <= options.support_radius
+        ):
+            kind = "kink" if "kink" in (how, last[2]) else last[2]
+            out[-1] = (li, 0.5 * (last[1] + u), kind, last[3] | ids)
+        else:
+            out.append((li, u, how, set(ids)))
+    return out
 
 
 def _not_run_through(

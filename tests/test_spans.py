@@ -458,3 +458,69 @@ def test_a_wire_carried_far_past_its_support_in_the_next_span_s_plane_gives_that
     for w in sp.wires:  # each wire hangs on one side of the support
         x = w.points(np.array(w.s_range))[:, 0]
         assert x.max() <= 0.5 or x.min() >= -0.5
+
+
+def test_wires_in_one_plane_stay_where_no_view_parts_them_or_they_never_touch(tmp_path):
+    # A conductor over two spans with a cable hanging 2 m under it in the same vertical plane
+    # (they never touch: both stay), and a second copy of the conductor's first span carried
+    # on 25 m, seen only by views right above the plane (none parts the two curves: both
+    # stay, as before).
+    rng = np.random.default_rng(4)
+    a_cat = 600.0
+    spans = [(np.array([-60.0, 0.0, 30.0]), np.array([0.0, 0.0, 30.0])),
+             (np.array([0.0, 0.0, 30.0]), np.array([60.0, 0.0, 30.0]))]  # fmt: skip
+    cable = (np.array([-60.0, 0.0, 28.0]), np.array([60.0, 0.0, 28.0]))
+    truth = [_span_points(a, b, a_cat, rng, step=0.02, noise=0.0, keep=(0.0, 0.0))
+             for a, b in spans + [cable]]  # fmt: skip
+    views = _drawn_views(tmp_path, truth, [(x, 0.0) for x in (-5.0, 8.0, 20.0)], rng)
+    pts = [_span_points(a, b, a_cat, rng) for a, b in spans]
+    pts.append(_span_points(*cable, 1800.0, rng))
+    d = 60.0 + np.linspace(2.0, 25.0, 1200)  # the first span's curve continued past x = 0
+    z = 30.0 + a_cat * (np.cosh((d - 30.0) / a_cat) - np.cosh(30.0 / a_cat))
+    pts.append(np.c_[d - 60.0, np.zeros_like(d), z] + rng.normal(0, 0.02, (len(d), 3)))
+    n = np.cumsum([0] + [len(p) for p in pts])
+    pts = np.concatenate(pts)
+    wires = [_wire(pts, np.arange(n[k], n[k + 1]), np.array([1.0, 0.0]), k) for k in range(4)]
+    before = [(w.wire_id, w.s_range) for w in wires]
+    from colmap_powerline import spans as spans_module
+
+    work = spans_module._Work(list(wires), [0, 1, 2, 3], [0, 0, 0, 0], set(), 4)
+    leg = spans_module._Leg(_corridor(90.0))
+    spans_module._one_per_plane(
+        work, [leg], views, pts, SpanOptions(), WiresOptions(), 2.5 * WiresOptions().inlier_distance
+    )
+    assert [(w.wire_id, w.s_range) for w in work.wires] == before
+
+
+def test_two_supports_placed_again_at_one_place_are_one():
+    from colmap_powerline.spans import _one_per_place
+
+    found = [(0, 17.9, "pieces meeting", {0, 1}), (0, -40.7, "kink", {2}),
+             (0, 17.5, "pieces meeting", {7, 10}), (1, 17.6, "pieces meeting", {3, 4}),
+             (0, 95.0, "wires ending", {5, 6})]  # fmt: skip
+    out = _one_per_place(found, SpanOptions())
+    assert [(li, round(u, 1), how, ids) for li, u, how, ids in out] == [
+        (0, -40.7, "kink", {2}),
+        (0, 17.7, "pieces meeting", {0, 1, 7, 10}),
+        (0, 95.0, "wires ending", {5, 6}),
+        (1, 17.6, "pieces meeting", {3, 4}),
+    ]
+
+
+def test_pieces_do_not_meet_where_a_curve_is_carried_far_from_its_points():
+    # One conductor over a support at x = 0; its first-span piece stops 25 m short of it
+    # (more than half the 40 m gap allowed), the second starts 1 m past it: their curves,
+    # continued, cross at the support, but the first's is a guess that far out.
+    from colmap_powerline.spans import _Leg, _pieces_meet
+
+    rng = np.random.default_rng(6)
+    a = _span_points([-90, 0, 30], [0, 0, 30], 900.0, rng, keep=(2.0, 25.0))
+    b = _span_points([0, 0, 30], [90, 0, 30], 900.0, rng, keep=(1.0, 2.0))
+    pts = np.r_[a, b]
+    wa = _wire(pts, np.arange(len(a)), np.array([1.0, 0.0]), 0)
+    wb = _wire(pts, np.arange(len(a), len(pts)), np.array([1.0, 0.0]), 1)
+    leg = _Leg(_corridor(90.0))
+    assert _pieces_meet(wa, wb, leg, SpanOptions(), 0.3) is None
+    # Each within 20 m of its points, they meet at the support.
+    near = SpanOptions(max_meeting_gap=60.0)
+    assert abs(_pieces_meet(wa, wb, leg, near, 0.3)) < 1.0
