@@ -120,11 +120,18 @@ def _bisector_normal(leg2: np.ndarray) -> np.ndarray:
     return n / float(n @ np.array([0.0, -1.0]))  # offsets kept across each leg
 
 
+def _over_a_support(rng, keep_a, keep_b, z_end=30.0):
+    """Points of one conductor's two spans (90 m, attached at 30 m) either side of a
+    support at the origin, and how many of them are the first span's."""
+    a = _span_points([-90, 0, 30], [0, 0, 30], 900.0, rng, keep=keep_a)
+    b = _span_points([0, 0, 30], [90, 0, z_end], 900.0, rng, keep=keep_b)
+    return np.r_[a, b], len(a)
+
+
 def test_a_kink_is_found_where_a_wire_passes_a_support():
     rng = np.random.default_rng(0)
-    a = _span_points([-90, 0, 30], [0, 0, 30], 900.0, rng, keep=(2.0, 0.0))
-    b = _span_points([0, 0, 30], [90, 0, 29], 900.0, rng, keep=(0.0, 2.0))
-    pts = np.r_[a, b]
+    pts, n_a = _over_a_support(rng, (2.0, 0.0), (0.0, 2.0), z_end=29.0)
+    a = pts[:n_a]
     w = _wire(pts, np.arange(len(pts)), np.array([1.0, 0.0]), 0)
     t = find_kink(w, pts, SpanOptions())
     assert t is not None
@@ -513,12 +520,9 @@ def test_pieces_do_not_meet_where_a_curve_is_carried_far_from_its_points():
     # continued, cross at the support, but the first's is a guess that far out.
     from colmap_powerline.spans import _Leg, _pieces_meet
 
-    rng = np.random.default_rng(6)
-    a = _span_points([-90, 0, 30], [0, 0, 30], 900.0, rng, keep=(2.0, 25.0))
-    b = _span_points([0, 0, 30], [90, 0, 30], 900.0, rng, keep=(1.0, 2.0))
-    pts = np.r_[a, b]
-    wa = _wire(pts, np.arange(len(a)), np.array([1.0, 0.0]), 0)
-    wb = _wire(pts, np.arange(len(a), len(pts)), np.array([1.0, 0.0]), 1)
+    pts, n_a = _over_a_support(np.random.default_rng(6), (2.0, 25.0), (1.0, 2.0))
+    wa = _wire(pts, np.arange(n_a), np.array([1.0, 0.0]), 0)
+    wb = _wire(pts, np.arange(n_a, len(pts)), np.array([1.0, 0.0]), 1)
     leg = _Leg(_corridor(90.0))
     assert _pieces_meet(wa, wb, leg, SpanOptions(), 0.3) is None
     # Each within 20 m of its points, they meet at the support.
