@@ -25,6 +25,7 @@ import pycolmap
 from scipy.spatial import cKDTree
 
 from .detect import DetectOptions
+from .geometry import distance_to_polyline
 from .scene import SceneImage
 from .synthetic import TrueWire
 from .trace import image_normals
@@ -52,25 +53,6 @@ class FittedWireLike(Protocol):
     def points(self, s: F64) -> F64: ...
 
     def sag(self) -> float: ...
-
-
-def distance_to_polyline(pts: F64, polyline: F64) -> F64:
-    """(N, 3) points → (N,) exact distance to the (M, 3) polyline's segments."""
-    pts = np.asarray(pts, np.float64).reshape(-1, 3)
-    a, b = polyline[:-1], polyline[1:]
-    seg = b - a
-    mid = 0.5 * (a + b)
-    tree = cKDTree(mid)
-    # Candidate segments: the k nearest midpoints (segments are short and evenly spaced).
-    k = min(8, len(mid))
-    _, cand = tree.query(pts, k=k)
-    cand = cand.reshape(len(pts), k)
-    sa, sv = a[cand], seg[cand]  # (N, k, 3)
-    t = np.einsum("nkj,nkj->nk", pts[:, None] - sa, sv) / np.maximum(
-        np.einsum("nkj,nkj->nk", sv, sv), 1e-300
-    )
-    proj = sa + np.clip(t, 0, 1)[..., None] * sv
-    return np.linalg.norm(pts[:, None] - proj, axis=2).min(axis=1)
 
 
 @dataclass(frozen=True)

@@ -14,6 +14,7 @@ from collections.abc import Callable
 
 import numpy as np
 import numpy.typing as npt
+from scipy.spatial import cKDTree
 
 F64 = npt.NDArray[np.float64]
 
@@ -121,3 +122,22 @@ def positions_across(offsets: F64, need: float) -> int:
         if x - last >= need:
             count, last = count + 1, x
     return count
+
+
+def distance_to_polyline(pts: F64, polyline: F64) -> F64:
+    """(N, D) points → (N,) exact distance to the (M, D) polyline's segments (D: 2 or 3)."""
+    pts = np.asarray(pts, np.float64).reshape(-1, polyline.shape[1])
+    a, b = polyline[:-1], polyline[1:]
+    seg = b - a
+    mid = 0.5 * (a + b)
+    tree = cKDTree(mid)
+    # Candidate segments: the k nearest midpoints (segments are short and evenly spaced).
+    k = min(8, len(mid))
+    _, cand = tree.query(pts, k=k)
+    cand = cand.reshape(len(pts), k)
+    sa, sv = a[cand], seg[cand]  # (N, k, 3)
+    t = np.einsum("nkj,nkj->nk", pts[:, None] - sa, sv) / np.maximum(
+        np.einsum("nkj,nkj->nk", sv, sv), 1e-300
+    )
+    proj = sa + np.clip(t, 0, 1)[..., None] * sv
+    return np.linalg.norm(pts[:, None] - proj, axis=2).min(axis=1)

@@ -37,6 +37,7 @@ wires in one plane apart and to see whether wires go on past where they end.
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import logging
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -49,7 +50,7 @@ import numpy.typing as npt
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
-from .geometry import across_of, axial_diff_deg, positions_across
+from .geometry import across_of, axial_diff_deg, distance_to_polyline, positions_across
 from .options import check_limits
 from .pairs import WireCorridor
 from .scene import read_image
@@ -457,6 +458,16 @@ RIDGE_SIGMAS = 2.5  # a ridge this many robust σ of the background's response i
 MAX_CONTINUATION_VIEWS = 6
 
 
+def _grey(view, greys: dict[Path, np.ndarray]) -> np.ndarray:
+    """The view's grey image, read once into ``greys`` (the images read so far, the oldest
+    let go past twice MAX_CONTINUATION_VIEWS: a few images in memory, at most)."""
+    if view.path not in greys:
+        if len(greys) >= 2 * MAX_CONTINUATION_VIEWS:
+            del greys[next(iter(greys))]
+        greys[view.path] = read_image(view.path, cv2.IMREAD_GRAYSCALE).astype(np.float32)
+    return greys[view.path]
+
+
 def _ridge(grey: np.ndarray, uv: F64) -> tuple[float, float]:
     """The thin line along the image curve ``uv`` (M, 2): its signed ridge response
     (brighter or darker than beside it: the grey levels across the curve averaged along
@@ -513,9 +524,7 @@ def _continues(
         uv = [q for q, _, _ in projected]
         if min(np.ptp(q[:, 0]) + np.ptp(q[:, 1]) for q in uv) < 10:  # too short to read
             continue
-        if v.path not in greys:
-            greys[v.path] = read_image(v.path, cv2.IMREAD_GRAYSCALE).astype(np.float32)
-        grey = greys[v.path]
+        grey = _grey(v, greys)
         ref, sigma = _ridge(grey, uv[0])
         if abs(ref) < RIDGE_SIGMAS * sigma:
             continue  # the measured wire itself is not plain here
@@ -536,18 +545,6 @@ MIN_APART_PX = 6.0
 MIN_CONFLICT_M = 1.0
 
 
-def _off_curve(pts: F64, curve: F64) -> F64:
-    """(N,) distance of each of the points (N, 2) from the polyline ``curve`` (M, 2): apart
-    across it, not along (a view in a wire's plane sees all its curves on one line)."""
-    a, b = curve[:-1], curve[1:]
-    ab = b - a
-    t = np.einsum("nmk,mk->nm", pts[:, None, :] - a[None], ab) / np.maximum(
-        np.einsum("mk,mk->m", ab, ab), 1e-12
-    )
-    foot = a[None] + np.clip(t, 0.0, 1.0)[..., None] * ab[None]
-    return np.linalg.norm(pts[:, None, :] - foot, axis=2).min(axis=1)
-
-
 def _told_apart(views: Sequence, a: F64, b: F64, greys: dict[Path, np.ndarray]) -> tuple[int, int]:
     """How many views show a line along the 3D curve ``a`` (M, 3) and none along ``b``, and
     how many the reverse: read where a view sees both (at least 10 px of them) at least
@@ -564,17 +561,14 @@ def _told_apart(views: Sequence, a: F64, b: F64, greys: dict[Path, np.ndarray]) 
         ua, ub = ua[both], ub[both]
         if np.ptp(ua[:, 0]) + np.ptp(ua[:, 1]) < 10:
             continue
-        apart = float(np.median(_off_curve(ub, ua)))
+        apart = float(np.median(distance_to_polyline(ub, ua)))  # across, not along
         if apart >= MIN_APART_PX:
             ranked.append((apart, v, ua, ub))
     ranked.sort(key=lambda r: -r[0])
     votes = [0, 0]
     for _, v, ua, ub in ranked[:MAX_CONTINUATION_VIEWS]:
-        if v.path not in greys:
-            if len(greys) >= 2 * MAX_CONTINUATION_VIEWS:  # a few images in memory, at most
-                del greys[next(iter(greys))]
-            greys[v.path] = read_image(v.path, cv2.IMREAD_GRAYSCALE).astype(np.float32)
-        (pa, sa), (pb, sb) = _ridge(greys[v.path], ua), _ridge(greys[v.path], ub)
+        grey = _grey(v, greys)
+        (pa, sa), (pb, sb) = _ridge(grey, ua), _ridge(grey, ub)
         shows_a, shows_b = abs(pa) >= RIDGE_SIGMAS * sa, abs(pb) >= RIDGE_SIGMAS * sb
         if shows_a != shows_b:
             votes[int(shows_b)] += 1
@@ -605,32 +599,40 @@ def _one_per_plane(
     changed = True
     while changed:
         changed = False
-        for i in range(len(out)):
-            for j in range(i + 1, len(out)):
-                if work.legs[i] != work.legs[j]:
-                    continue
-                leg = axes[work.legs[i]]
-                lo = max(leg.ends_u(out[i])[0], leg.ends_u(out[j])[0])
-                hi = min(leg.ends_u(out[i])[1], leg.ends_u(out[j])[1])
-                if hi - lo < options.support_radius:
-                    continue
-                u = np.linspace(lo, hi, int((hi - lo) / 0.25) + 2)
-                ci, zi = leg.curve(out[i], u)
-                cj, zj = leg.curve(out[j], u)
-                dz = zi - zj
-                if np.max(np.abs(ci - cj)) > max_across or np.min(np.abs(dz)) > max_across:
-                    continue
-                loser = _stretches_lost(out[i], out[j], leg, u, dz, max_across, views, greys)
-                if not loser:
-                    continue
+        for i, j in itertools.combinations(range(len(out)), 2):
+            if work.legs[i] != work.legs[j]:
+                continue
+            leg = axes[work.legs[i]]
+            touching = _touching(out[i], out[j], leg, options.support_radius, max_across)
+            if touching is None:
+                continue
+            loser = _stretches_lost(out[i], out[j], leg, *touching, max_across, views, greys)
+            if loser is not None:
                 which, lost = loser
                 changed = _give_up(
                     work, (i, j)[which], lost, leg, pts_in_world, options, wires_options
                 )
                 if changed:
                     break
-            if changed:
-                break
+
+
+def _touching(
+    a: FittedWire, b: FittedWire, leg: _Leg, min_overlap: float, max_across: float
+) -> tuple[F64, F64] | None:
+    """Where along the leg two wires both measure (``u``, every 0.25) and their heights'
+    difference there, when that stretch is ``min_overlap`` or longer and their curves lie
+    in one vertical plane (within ``max_across``) and touch in it; else None."""
+    (a_lo, a_hi), (b_lo, b_hi) = leg.ends_u(a), leg.ends_u(b)
+    lo, hi = max(a_lo, b_lo), min(a_hi, b_hi)
+    if hi - lo < min_overlap:
+        return None
+    u = np.linspace(lo, hi, int((hi - lo) / 0.25) + 2)
+    ca, za = leg.curve(a, u)
+    cb, zb = leg.curve(b, u)
+    dz = za - zb
+    if np.max(np.abs(ca - cb)) > max_across or np.min(np.abs(dz)) > max_across:
+        return None
+    return u, dz
 
 
 def _stretches_lost(
@@ -870,21 +872,23 @@ def _clustered(cands: list[_Candidate], n_legs: int, options: SpanOptions) -> li
 
 def _one_per_place(found: list[_Found], options: SpanOptions) -> list[_Found]:
     """Supports of one leg placed again within ``support_radius`` of each other (two
-    places where pieces met, each moved to where the pieces cut there meet) are one."""
-    out: list[_Found] = []
-    for li, u, how, ids in sorted(found, key=lambda f: (f[0], f[1])):
-        last = out[-1] if out else None
-        if (
-            last is not None
-            and last[0] == li
-            and "wires ending" not in (how, last[2])
-            and u - last[1] <= options.support_radius
-        ):
-            kind = "kink" if "kink" in (how, last[2]) else last[2]
-            out[-1] = (li, 0.5 * (last[1] + u), kind, last[3] | ids)
-        else:
-            out.append((li, u, how, set(ids)))
-    return out
+    places where pieces met, each moved to where the pieces cut there meet) are one, as
+    :func:`_clustered` makes them; a line's end stays as it is."""
+    out = [f for f in found if f[2] == "wires ending"]
+    for li in sorted({f[0] for f in found}):
+        mine = [f for f in found if f[0] == li and f[2] != "wires ending"]
+        for g in _cluster(np.array([f[1] for f in mine]), options.support_radius):
+            members = [mine[i] for i in g]
+            kinds = {f[2] for f in members}
+            out.append(
+                (
+                    li,
+                    float(np.median([f[1] for f in members])),
+                    "kink" if "kink" in kinds else members[0][2],
+                    set().union(*(f[3] for f in members)),
+                )
+            )
+    return sorted(out, key=lambda f: (f[0], f[1]))
 
 
 def _not_run_through(
