@@ -1878,7 +1878,8 @@ def _without_untraced(
     """The wires without those the views would fix but do not find (traced share below
     ``MIN_TRACED_SHARE``), and without those that no view can tell from a false pairing (no
     crossing view), or that one strip alone confirms, and that the views can fix nowhere
-    apart from the other wires (no traced share): renumbered from 0."""
+    apart from the other wires (no traced share), and without those tracing measured at no
+    place (a line the views find, but fix nowhere): renumbered from 0."""
 
     def unfixed(s: WireSupport) -> bool:
         # Where only two strips see the wires, a pairing of two lines that other wires or
@@ -1896,23 +1897,29 @@ def _without_untraced(
     kept = [
         k
         for k, s in enumerate(supports)
-        if (s.traced_share is None or s.traced_share >= MIN_TRACED_SHARE) and not unfixed(s)
+        if (s.traced_share is None or s.traced_share >= MIN_TRACED_SHARE)
+        and not unfixed(s)
+        and len(wires[k].point_indices) > 0
     ]
     for k in sorted(set(range(len(wires))) - set(kept)):
         w, s = wires[k], supports[k]
-        why = (
-            (
+        if len(w.point_indices) == 0:
+            why = "the views find it but measure it at no place (no point of it)"
+        elif unfixed(s):
+            why = (
                 "no view can tell it from a false pairing"
                 if s.crossing_views == 0
                 else f"{s.confirming_strips} strip(s) of the views confirm it apart from other "
                 "wires (one confirms a plane, not a line)"
+            ) + (
+                " and the views fix it nowhere apart from the other wires (a pairing of lines "
+                "other wires or their shadows draw)"
             )
-            + " and the views fix it nowhere apart from the other wires (a pairing of lines "
-            "other wires or their shadows draw)"
-            if unfixed(s)
-            else f"the views that would fix it find a wire at {100 * (s.traced_share or 0.0):.0f} "
-            "% of its places (a false pairing)"
-        )
+        else:
+            why = (
+                "the views that would fix it find a wire at "
+                f"{100 * (s.traced_share or 0.0):.0f} % of its places (a false pairing)"
+            )
         logger.info(
             "trace: wire %d dropped (%.0f m at %.1f above the ground): %s",
             w.wire_id,

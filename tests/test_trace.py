@@ -195,7 +195,12 @@ def test_a_wire_no_view_can_tell_and_no_strip_confirms_is_dropped(conductors):
 def test_wires_the_views_would_fix_but_do_not_find_are_dropped(conductors):
     from colmap_powerline.pipeline import MIN_TRACED_SHARE, _without_untraced
 
-    wires = [_curve(t, k, 0.2, 0.8, 0.0) for k, t in enumerate(conductors[:3])]
+    wires = [
+        dataclasses.replace(
+            _curve(t, k, 0.2, 0.8, 0.0), point_indices=np.arange(10 * k, 10 * k + 10)
+        )
+        for k, t in enumerate(conductors[:3])
+    ]
     sup = [_support(0, 1.0, 0.9), _support(1, 1.0, MIN_TRACED_SHARE / 2), _support(2, 1.0)]
     kept, kept_sup = _without_untraced(wires, sup)
     # The one found at too few places goes; one no view could fix (None) stays; renumbered.
@@ -217,6 +222,11 @@ def test_wires_the_views_would_fix_but_do_not_find_are_dropped(conductors):
     ]
     kept, kept_sup = _without_untraced(wires, sup)
     assert [w.z0 for w in kept] == [wires[1].z0, wires[2].z0]
+    # Found by the views but measured at no place (a faint line's hypothesis tracing found
+    # at 81 % of its places, none of them fixed): no wire to report, it goes.
+    unmeasured = dataclasses.replace(wires[0], point_indices=np.zeros(0, np.int64))
+    kept, _ = _without_untraced([unmeasured, wires[1]], [_support(0, 1.0, 0.81), sup[1]])
+    assert [w.z0 for w in kept] == [wires[1].z0]
 
 
 def test_a_rejected_wire_the_views_find_gets_a_second_look(small_scene, conductors):
