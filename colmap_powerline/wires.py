@@ -409,7 +409,8 @@ def _joint_fit(
 ) -> FittedWire | None:
     """One curve through the points of two pieces, when it keeps ``MERGE_INLIER_SHARE`` of
     each piece's points (a short piece beside a long wire is a small share of their points,
-    so the share of all of them would not tell) and they meet at no support
+    so the share of all of them would not tell), or of all but a shorter stretch at the end
+    facing the other (:func:`_kept_but_near_end`), and they meet at no support
     (:func:`_across_support`); else None."""
     idx = np.r_[a.point_indices, b.point_indices]
     fit = _fit(pts_in_world, idx, along, options)
@@ -418,10 +419,35 @@ def _joint_fit(
     if _across_support(a, b, pts_in_world, along, options):
         return None
     inlier = np.isin(idx, fit.point_indices)
+    s = fit.plane_coords(pts_in_world[idx])[0]
     n_a = len(a.point_indices)
-    if min(inlier[:n_a].mean(), inlier[n_a:].mean()) < MERGE_INLIER_SHARE:
-        return None
+    for own, other in ((slice(0, n_a), slice(n_a, None)), (slice(n_a, None), slice(0, n_a))):
+        if not _kept_but_near_end(s[own], inlier[own], s[other]):
+            return None
     return fit
+
+
+def _kept_but_near_end(s: F64, kept: npt.NDArray[np.bool_], s_other: F64) -> bool:
+    """Does one curve through two pieces keep ``MERGE_INLIER_SHARE`` of one piece's points
+    (along-line places ``s``, ``kept`` by the curve), but for a stretch at the end facing the
+    other piece (at ``s_other``, wholly beyond that end) shorter than the rest of it?
+
+    Points matched last before a gap are matched worst; a piece whose far part lies on the
+    other's curve continued is a stretch of that wire (wires in one vertical plane never
+    cross), whatever its near end holds (the shared corridor seed 1: a shield wire's 30 m
+    piece whose first 8 m lie 10-20 cm high, beside a 29 m piece of it 3 m away)."""
+    if kept.mean() >= MERGE_INLIER_SHARE:
+        return True
+    lo, hi = float(s.min()), float(s.max())
+    if s_other.min() < hi and s_other.max() > lo:
+        return False  # side by side: no end faces the other
+    from_end = hi - s if s_other.min() >= hi else s - lo
+    order = np.argsort(from_end)
+    lost = ~kept[order]
+    # Past each place from the end: points lost, and points in all.
+    lost_past = np.cumsum(lost[::-1])[::-1]
+    ok = lost_past <= (1 - MERGE_INLIER_SHARE) * np.arange(len(s), 0, -1)
+    return bool(ok.any() and from_end[order][np.argmax(ok)] < (hi - lo) / 2)
 
 
 def parabola_split_rss(s: F64, z: F64) -> tuple[F64, F64]:

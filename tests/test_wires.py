@@ -411,3 +411,29 @@ def test_a_line_of_pieces_at_another_lines_support_is_its_bracing():
     assert member_of(diagonal(0, 49.0, 18.0), [line]) is line
     assert member_of(diagonal(0, 0.0, 18.0), [line]) is None  # mid-span
     assert member_of(diagonal(0, 49.0, 13.0), []) is None
+
+
+def test_pieces_are_joined_when_one_curve_misses_only_a_near_end_of_one():
+    """The shared corridor seed 1: a shield wire's 30 m piece whose first 8 m, next to a
+    3 m gap, lie 10-20 cm high beside a 38 m piece of it. One curve keeps all of the one
+    and the far 22 m of the other: one wire, without the near end's points. A stretch off
+    the curve at the far end, or a near end longer than the rest, keep the pieces apart."""
+    s_left, s_right = np.arange(-50, -12, 0.05), np.arange(-9, 21, 0.05)
+    left = _catenary_points(s_left, 4.0, 20.0)
+    clean = _catenary_points(s_right, 4.0, 20.0)
+    rng = np.random.default_rng(1)
+
+    def joined_with(at_far_end: bool, length: float, lift: float) -> list[FittedWire]:
+        d = (s_right[-1] - s_right) if at_far_end else (s_right - s_right[0])
+        right = clean + np.c_[0 * d, 0 * d, (d < length) * rng.uniform(lift, 2 * lift, len(d))]
+        # The piece as the split left it: its curve, with every point it holds.
+        a, b = _pieces(left, clean)
+        b = dataclasses.replace(b, point_indices=len(left) + np.arange(len(right)))
+        return merge_pieces([a, b], np.r_[left, right], 90.0, WiresOptions())[0]
+
+    (one,) = joined_with(False, 8.0, 0.1)
+    kept = np.isin(len(left) + np.arange(len(clean)), one.point_indices)
+    assert kept[s_right > s_right[0] + 8].mean() > 0.95
+    assert kept[s_right < s_right[0] + 8].mean() < 0.5
+    assert len(joined_with(False, 20.0, 0.3)) == 2
+    assert len(joined_with(True, 8.0, 0.3)) == 2
