@@ -2214,7 +2214,9 @@ def _metadata(
         ],
         "num_primitives": int(sum(len(p) for p in result.primitives)),
         "num_verified_points": len(result.verified),
-        "images_decoded": len(result.decoded),
+        # Every read of an image (the work done), and the images read (each counted once).
+        "image_reads": len(result.decoded),
+        "images_read": len(set(result.decoded)),
         "timings_s": result.timings_s,
         "options": plain(options),
         "outputs": plain(outputs),

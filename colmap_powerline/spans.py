@@ -494,15 +494,15 @@ def _ridge(grey: np.ndarray, uv: F64) -> tuple[float, float]:
 
 def _continues(
     views: Sequence, wire: FittedWire, at_end: int, greys: dict[Path, np.ndarray]
-) -> bool | None:
-    """Whether the images show ``wire`` going on past its end ``at_end`` (0: first, 1:
-    last). Its curve is read CONTINUATION_M past the end, in two halves, in the views that
-    show it plainly along the same length before the end: it goes on in a view where both
-    halves hold a line of the same polarity and at least half the contrast of the measured
-    wire's (a tower's members cross there at all angles and contrasts, a wire carries on
-    as it was). It goes on when it does in at least half of those views; None when no
-    view shows the measured wire plainly (the test cannot tell). ``greys``: the grey images
-    read so far (the wires ending at one place share their views: each is read once)."""
+) -> tuple[int, int]:
+    """How many views show ``wire`` going on past its end ``at_end`` (0: first, 1: last),
+    of how many could tell. Its curve is read CONTINUATION_M past the end, in two halves,
+    in the views that show it plainly along the same length before the end (those that can
+    tell): it goes on in a view where both halves hold a line of the same polarity and at
+    least half the contrast of the measured wire's (a tower's members cross there at all
+    angles and contrasts, a wire carries on as it was). It goes on when it does in at least
+    half of those views. ``greys``: the grey images read so far (the wires ending at one
+    place share their views: each is read once)."""
     lo, hi = wire.s_range
     sign = -1.0 if at_end == 0 else 1.0
     end = lo if at_end == 0 else hi
@@ -533,9 +533,7 @@ def _continues(
             np.sign(peak) == np.sign(ref) and abs(peak) >= max(0.5 * abs(ref), RIDGE_SIGMAS * sg)
             for peak, sg in (_ridge(grey, q) for q in uv[1:])
         )
-    if shown == 0:
-        return None
-    return going >= shown / 2
+    return going, shown
 
 
 # Two wires' image curves at least this far apart (px) are told apart by their ridges (each
@@ -702,6 +700,11 @@ def _give_up(
         work.wires[k] = kept
     work.cut_ids.add(w.wire_id)
     return True
+
+
+def _seeing(views: Sequence, at: F64) -> int:
+    """How many of the views see the place ``at``."""
+    return sum(bool(v.project(at[None])[2][0]) for v in views)
 
 
 def _measurable(views: Sequence, at: F64, leg: _Leg, crossing_offset: float) -> bool:
@@ -972,21 +975,30 @@ def _line_ends(
                 past = np.array([np.r_[leg.xy(u_end + sign * d, c_mid), z] for d in BEYOND_M])
                 # Where the corridor ends, its wires end with it: the survey's edge.
                 edge = min(abs(u_end - e) for e in axes[li].extent)
-                if edge <= options.support_radius or not all(
-                    _measurable(views, p, leg, crossing_offset) for p in past
-                ):
+                if edge <= options.support_radius:
                     continue
-                # And the images do not show the wires going on (where the measurements
-                # stopped short of a support, they do).
+                # Past the ends the views could measure a wire, or at least two see there
+                # (fewer than tracing needs: the wires may end for want of views)...
+                measurable = all(_measurable(views, p, leg, crossing_offset) for p in past)
+                if not measurable and min(_seeing(views, p) for p in past) < 2:
+                    continue
+                # ...and the images do not show the wires going on (where the measurements
+                # stopped short of a support, they do). Where the views could not measure
+                # there, two or more must show the wires plainly before their ends and none
+                # going on.
                 longest = sorted(g, key=lambda i: -np.ptp(ends[i]))[:3]
-                goes_on = []
+                reads = []
                 greys: dict[Path, np.ndarray] = {}
                 for i in longest:
                     w = out[idx[i]]
                     first = float(np.mean(leg.ends_u(w))) > u_end
                     which = 0 if first == _s_grows_along(w, leg) else 1
-                    goes_on.append(_continues(views, w, which, greys))
-                if any(goes_on):
+                    reads.append(_continues(views, w, which, greys))
+                if not measurable and (
+                    sum(shown for _, shown in reads) < 2 or any(going for going, _ in reads)
+                ):
+                    continue
+                if any(shown and going >= shown / 2 for going, shown in reads):
                     logger.info(
                         "spans: %d wires end together at %.1f along the line, but the "
                         "images show them going on: not the line's end",

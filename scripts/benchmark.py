@@ -136,7 +136,7 @@ def _run_one(
             "targets": ev.meets_targets(),
             "timings_s": result.timings_s,
             "total_s": total,
-            "images_decoded": len(result.decoded),
+            "image_reads": len(result.decoded),
             "decode_only_s": decode_s,
             "peak_rss_mb": peak_mb,
             "num_pairs": len(result.pairs),
@@ -238,8 +238,8 @@ def main(argv: list[str] | None = None) -> None:
             print(r["table"])
             print(f"targets: {r['targets']}")
             print(
-                f"time: total {r['total_s']:.1f} s ({stages}); {r['images_decoded']} images "
-                f"decoded, decode-only {r['decode_only_s']:.1f} s → "
+                f"time: total {r['total_s']:.1f} s ({stages}); {r['image_reads']} image "
+                f"reads, decode-only {r['decode_only_s']:.1f} s → "
                 f"{r['total_s'] / max(r['decode_only_s'], 1e-9):.1f}x; "
                 f"peak RSS {r['peak_rss_mb']:.0f} MB",
                 flush=True,

@@ -85,7 +85,8 @@ def test_outputs_follow_the_contract(run, medium_span):
     result, out = run
     doc = json.loads((out / "wires.json").read_text())
     assert doc["input_model"].endswith("0") and len(doc["pairs"]) == len(result.pairs)
-    assert {"timings_s", "options", "images_decoded"} <= set(doc)
+    assert {"timings_s", "options", "image_reads", "images_read"} <= set(doc)
+    assert 0 < doc["images_read"] <= doc["image_reads"]
     assert len(doc["wires"]) == len(result.wires)
     for w in doc["wires"]:
         assert w["sag_m"] >= 0 and w["clearance_m"] > 10 and w["num_points"] > 0

@@ -528,3 +528,31 @@ def test_pieces_do_not_meet_where_a_curve_is_carried_far_from_its_points():
     # Each within 20 m of its points, they meet at the support.
     near = SpanOptions(max_meeting_gap=60.0)
     assert abs(_pieces_meet(wa, wb, leg, near, 0.3)) < 1.0
+
+
+@pytest.mark.parametrize("goes_on", [False, True])
+def test_a_line_s_end_seen_past_by_two_views_only(tmp_path, goes_on):
+    # Three conductors end together at a terminal tower at x = 60 (measured to 2 m short of
+    # it). Past it only two views see the line (the shared cross seed 2: a strip across the
+    # line sees 5-10 m past the tower from two images): fewer than tracing needs, so the
+    # wires may end for want of views. Both show the wires plainly before their ends and no
+    # line past them: the line ends there. Where they show the wires going on (the wires
+    # stopped short of the images' edge), no support is made up.
+    rng = np.random.default_rng(7)
+    a_cat = 600.0
+    far = 100.0 if goes_on else 60.0
+    ends = [(np.array([-60.0, y, 30.0]), np.array([60.0, y, 30.0])) for y in (-3.0, 0.0, 3.0)]
+    x = np.arange(-60.0, far, 0.02)  # the level span's curve, on past the tower or not
+    z = 30.0 + a_cat * (np.cosh(x / a_cat) - np.cosh(60.0 / a_cat))
+    truth = [np.c_[x, np.full_like(x, y), z] for y in (-3.0, 0.0, 3.0)]
+    views = _drawn_views(tmp_path, truth, [(62.0, -8.0), (62.0, 8.0)], rng)
+    pts = [_span_points(a, b, a_cat, rng) for a, b in ends]
+    n = np.cumsum([0] + [len(p) for p in pts])
+    pts = np.concatenate(pts)
+    wires = [_wire(pts, np.arange(n[k], n[k + 1]), np.array([1.0, 0.0]), k) for k in range(3)]
+    sp = find_spans(views, _flat, wires, [0] * 3, [_corridor(90.0)], pts)
+    if goes_on:
+        assert sp.supports == []
+    else:
+        assert [s.kind for s in sp.supports] == ["end"]
+        assert abs(sp.supports[0].position[0] - 59.0) < 1.5
