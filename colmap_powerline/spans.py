@@ -994,11 +994,12 @@ def _line_ends(
                     first = float(np.mean(leg.ends_u(w))) > u_end
                     which = 0 if first == _s_grows_along(w, leg) else 1
                     reads.append(_continues(views, w, which, greys))
-                if not measurable and (
-                    sum(shown for _, shown in reads) < 2 or any(going for going, _ in reads)
-                ):
+                going, shown = np.sum(reads, axis=0)
+                if not measurable and (shown < 2 or going > 0):
                     continue
-                if any(shown and going >= shown / 2 for going, shown in reads):
+                # The line goes on, or it ends: all its wires alike (the views' reads of
+                # them pooled; one view of one wire does not decide).
+                if shown and going >= shown / 2:
                     logger.info(
                         "spans: %d wires end together at %.1f along the line, but the "
                         "images show them going on: not the line's end",

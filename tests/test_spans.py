@@ -556,3 +556,31 @@ def test_a_line_s_end_seen_past_by_two_views_only(tmp_path, goes_on):
     else:
         assert [s.kind for s in sp.supports] == ["end"]
         assert abs(sp.supports[0].position[0] - 59.0) < 1.5
+
+
+def test_a_line_ends_where_the_views_of_all_its_wires_together_say_so(tmp_path):
+    # Three conductors end at a terminal tower at x = 60. Past it, two of the three views
+    # show a line on one wire's curve continued (a fence, a road edge, the next line's
+    # conductor beside it: the shared cross seed 6, one view of one wire), none on the
+    # others': the reads of all three wires together say the line ends, and it does.
+    rng = np.random.default_rng(8)
+    a_cat = 600.0
+    ends = [(np.array([-60.0, y, 30.0]), np.array([60.0, y, 30.0])) for y in (-3.0, 0.0, 3.0)]
+
+    def drawn(far_of_middle: float) -> list[np.ndarray]:
+        out = []
+        for y in (-3.0, 0.0, 3.0):
+            x = np.arange(-60.0, far_of_middle if y == 0.0 else 60.0, 0.02)
+            z = 30.0 + a_cat * (np.cosh(x / a_cat) - np.cosh(60.0 / a_cat))
+            out.append(np.c_[x, np.full_like(x, y), z])
+        return out
+
+    (tmp_path / "b").mkdir()
+    views = _drawn_views(tmp_path, drawn(60.0), [(62.0, -8.0)], rng)
+    views += _drawn_views(tmp_path / "b", drawn(100.0), [(62.0, 0.0), (62.0, 8.0)], rng)
+    pts = [_span_points(a, b, a_cat, rng) for a, b in ends]
+    n = np.cumsum([0] + [len(p) for p in pts])
+    pts = np.concatenate(pts)
+    wires = [_wire(pts, np.arange(n[k], n[k + 1]), np.array([1.0, 0.0]), k) for k in range(3)]
+    sp = find_spans(views, _flat, wires, [0] * 3, [_corridor(90.0)], pts)
+    assert [s.kind for s in sp.supports] == ["end"]
