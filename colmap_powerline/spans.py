@@ -500,9 +500,8 @@ def _continues(
     in the views that show it plainly along the same length before the end (those that can
     tell): it goes on in a view where both halves hold a line of the same polarity and at
     least half the contrast of the measured wire's (a tower's members cross there at all
-    angles and contrasts, a wire carries on as it was). It goes on when it does in at least
-    half of those views. ``greys``: the grey images read so far (the wires ending at one
-    place share their views: each is read once)."""
+    angles and contrasts, a wire carries on as it was). ``greys``: the grey images read so
+    far (the wires ending at one place share their views: each is read once)."""
     lo, hi = wire.s_range
     sign = -1.0 if at_end == 0 else 1.0
     end = lo if at_end == 0 else hi
