@@ -135,7 +135,7 @@ def distance_to_polyline(pts: F64, polyline: F64) -> F64:
     k = min(8, len(mid))
     _, cand = tree.query(pts, k=k)
     cand = cand.reshape(len(pts), k)
-    sa, sv = a[cand], seg[cand]  # (N, k, 3)
+    sa, sv = a[cand], seg[cand]  # (N, k, D)
     t = np.einsum("nkj,nkj->nk", pts[:, None] - sa, sv) / np.maximum(
         np.einsum("nkj,nkj->nk", sv, sv), 1e-300
     )

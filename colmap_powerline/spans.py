@@ -701,15 +701,15 @@ def _give_up(
     return True
 
 
-def _seeing(views: Sequence, at: F64) -> int:
-    """How many of the views see the place ``at``."""
-    return sum(bool(v.project(at[None])[2][0]) for v in views)
+def _seeing(views: Sequence, at: F64) -> list:
+    """The views that see the place ``at``."""
+    return [v for v in views if v.project(at[None])[2][0]]
 
 
-def _measurable(views: Sequence, at: F64, leg: _Leg, crossing_offset: float) -> bool:
-    """Whether the views could measure a wire at ``at`` along the leg: three of them see
-    it, from two positions across it (tracing's rule, and the coverage report's)."""
-    seeing = [v for v in views if v.project(at[None])[2][0]]
+def _measurable(seeing: Sequence, at: F64, leg: _Leg, crossing_offset: float) -> bool:
+    """Whether the views ``seeing`` the place ``at`` along the leg could measure a wire
+    there: three of them, from two positions across it (tracing's rule, and the coverage
+    report's)."""
     if len(seeing) < MIN_VIEWS_BEYOND:
         return False
     centres = np.array([v.center_in_world for v in seeing])
@@ -978,8 +978,12 @@ def _line_ends(
                     continue
                 # Past the ends the views could measure a wire, or at least two see there
                 # (fewer than tracing needs: the wires may end for want of views)...
-                measurable = all(_measurable(views, p, leg, crossing_offset) for p in past)
-                if not measurable and min(_seeing(views, p) for p in past) < 2:
+                seeing = [_seeing(views, p) for p in past]
+                measurable = all(
+                    _measurable(by, p, leg, crossing_offset)
+                    for by, p in zip(seeing, past, strict=True)
+                )
+                if not measurable and min(len(by) for by in seeing) < 2:
                     continue
                 # ...and the images do not show the wires going on (where the measurements
                 # stopped short of a support, they do). Where the views could not measure

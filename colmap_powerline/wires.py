@@ -419,8 +419,10 @@ def _joint_fit(
     if _across_support(a, b, pts_in_world, along, options):
         return None
     inlier = np.isin(idx, fit.point_indices)
-    s = fit.plane_coords(pts_in_world[idx])[0]
     n_a = len(a.point_indices)
+    if min(inlier[:n_a].mean(), inlier[n_a:].mean()) >= MERGE_INLIER_SHARE:
+        return fit
+    s = fit.plane_coords(pts_in_world[idx])[0]
     for own, other in ((slice(0, n_a), slice(n_a, None)), (slice(n_a, None), slice(0, n_a))):
         if not _kept_but_near_end(s[own], inlier[own], s[other]):
             return None

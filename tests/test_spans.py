@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from colmap_powerline.pairs import WireCorridor
-from colmap_powerline.spans import LineSupport, SpanOptions, find_kink, find_spans
+from colmap_powerline.spans import LineSupport, SpanOptions, Spans, find_kink, find_spans
 from colmap_powerline.wires import FittedWire, WiresOptions, refit, split_wires
 
 
@@ -530,27 +530,45 @@ def test_pieces_do_not_meet_where_a_curve_is_carried_far_from_its_points():
     assert abs(_pieces_meet(wa, wb, leg, near, 0.3)) < 1.0
 
 
-@pytest.mark.parametrize("goes_on", [False, True])
-def test_a_line_s_end_seen_past_by_two_views_only(tmp_path, goes_on):
-    # Three conductors end together at a terminal tower at x = 60 (measured to 2 m short of
-    # it). Past it only two views see the line (the shared cross seed 2: a strip across the
-    # line sees 5-10 m past the tower from two images): fewer than tracing needs, so the
-    # wires may end for want of views. Both show the wires plainly before their ends and no
-    # line past them: the line ends there. Where they show the wires going on (the wires
-    # stopped short of the images' edge), no support is made up.
-    rng = np.random.default_rng(7)
-    a_cat = 600.0
-    far = 100.0 if goes_on else 60.0
-    ends = [(np.array([-60.0, y, 30.0]), np.array([60.0, y, 30.0])) for y in (-3.0, 0.0, 3.0)]
-    x = np.arange(-60.0, far, 0.02)  # the level span's curve, on past the tower or not
-    z = 30.0 + a_cat * (np.cosh(x / a_cat) - np.cosh(60.0 / a_cat))
-    truth = [np.c_[x, np.full_like(x, y), z] for y in (-3.0, 0.0, 3.0)]
-    views = _drawn_views(tmp_path, truth, [(62.0, -8.0), (62.0, 8.0)], rng)
-    pts = [_span_points(a, b, a_cat, rng) for a, b in ends]
+# Three level conductors 3 m apart on a 120 m span (a = 600) ending at a terminal tower at
+# x = 60 (the tower at x = -60 outside every view).
+_TERMINAL_YS = (-3.0, 0.0, 3.0)
+_TERMINAL_A = 600.0
+
+
+def _terminal_curves(far: dict[float, float]) -> list[np.ndarray]:
+    """The three conductors' curves as the images show them: each from x = -60 on to
+    ``far[y]`` (60: it ends at the tower; more: a line on its curve continued past it)."""
+    out = []
+    for y in _TERMINAL_YS:
+        x = np.arange(-60.0, far.get(y, 60.0), 0.02)
+        z = 30.0 + _TERMINAL_A * (np.cosh(x / _TERMINAL_A) - np.cosh(60.0 / _TERMINAL_A))
+        out.append(np.c_[x, np.full_like(x, y), z])
+    return out
+
+
+def _terminal_spans(views, rng) -> Spans:
+    """The supports the spans stage finds for the three conductors, measured to 2 m short
+    of each tower, seen by ``views``."""
+    ends = [(np.array([-60.0, y, 30.0]), np.array([60.0, y, 30.0])) for y in _TERMINAL_YS]
+    pts = [_span_points(a, b, _TERMINAL_A, rng) for a, b in ends]
     n = np.cumsum([0] + [len(p) for p in pts])
     pts = np.concatenate(pts)
     wires = [_wire(pts, np.arange(n[k], n[k + 1]), np.array([1.0, 0.0]), k) for k in range(3)]
-    sp = find_spans(views, _flat, wires, [0] * 3, [_corridor(90.0)], pts)
+    return find_spans(views, _flat, wires, [0] * 3, [_corridor(90.0)], pts)
+
+
+@pytest.mark.parametrize("goes_on", [False, True])
+def test_a_line_s_end_seen_past_by_two_views_only(tmp_path, goes_on):
+    # Past the terminal tower only two views see the line (the shared cross seed 2: a strip
+    # across the line sees 5-10 m past the tower from two images): fewer than tracing
+    # needs, so the wires may end for want of views. Both show the wires plainly before
+    # their ends and no line past them: the line ends there. Where they show the wires
+    # going on (the wires stopped short of the images' edge), no support is made up.
+    rng = np.random.default_rng(7)
+    far = dict.fromkeys(_TERMINAL_YS, 100.0 if goes_on else 60.0)
+    views = _drawn_views(tmp_path, _terminal_curves(far), [(62.0, -8.0), (62.0, 8.0)], rng)
+    sp = _terminal_spans(views, rng)
     if goes_on:
         assert sp.supports == []
     else:
@@ -559,28 +577,15 @@ def test_a_line_s_end_seen_past_by_two_views_only(tmp_path, goes_on):
 
 
 def test_a_line_ends_where_the_views_of_all_its_wires_together_say_so(tmp_path):
-    # Three conductors end at a terminal tower at x = 60. Past it, two of the three views
-    # show a line on one wire's curve continued (a fence, a road edge, the next line's
-    # conductor beside it: the shared cross seed 6, one view of one wire), none on the
-    # others': the reads of all three wires together say the line ends, and it does.
+    # Past the terminal tower, two of the three views show a line on one wire's curve
+    # continued (a fence, a road edge, the next line's conductor beside it: the shared
+    # cross seed 6, one view of one wire), none on the others': the reads of all three
+    # wires together say the line ends, and it does.
     rng = np.random.default_rng(8)
-    a_cat = 600.0
-    ends = [(np.array([-60.0, y, 30.0]), np.array([60.0, y, 30.0])) for y in (-3.0, 0.0, 3.0)]
-
-    def drawn(far_of_middle: float) -> list[np.ndarray]:
-        out = []
-        for y in (-3.0, 0.0, 3.0):
-            x = np.arange(-60.0, far_of_middle if y == 0.0 else 60.0, 0.02)
-            z = 30.0 + a_cat * (np.cosh(x / a_cat) - np.cosh(60.0 / a_cat))
-            out.append(np.c_[x, np.full_like(x, y), z])
-        return out
-
     (tmp_path / "b").mkdir()
-    views = _drawn_views(tmp_path, drawn(60.0), [(62.0, -8.0)], rng)
-    views += _drawn_views(tmp_path / "b", drawn(100.0), [(62.0, 0.0), (62.0, 8.0)], rng)
-    pts = [_span_points(a, b, a_cat, rng) for a, b in ends]
-    n = np.cumsum([0] + [len(p) for p in pts])
-    pts = np.concatenate(pts)
-    wires = [_wire(pts, np.arange(n[k], n[k + 1]), np.array([1.0, 0.0]), k) for k in range(3)]
-    sp = find_spans(views, _flat, wires, [0] * 3, [_corridor(90.0)], pts)
+    views = _drawn_views(tmp_path, _terminal_curves({}), [(62.0, -8.0)], rng)
+    views += _drawn_views(
+        tmp_path / "b", _terminal_curves({0.0: 100.0}), [(62.0, 0.0), (62.0, 8.0)], rng
+    )
+    sp = _terminal_spans(views, rng)
     assert [s.kind for s in sp.supports] == ["end"]
