@@ -34,6 +34,7 @@ from .geometry import (
     axial_mean_deg,
     azimuth_deg_of,
     image_direction_of_azimuth,
+    plan_axes,
 )
 from .georef import Georeference, crs_converter, crs_wkt, read_georeference
 from .las import CONDUCTOR, WIRE_CLASS, write_las
@@ -59,7 +60,7 @@ from .results import (
 )
 from .scene import Scene, SceneImage, load_scene, read_image, resolve_inputs
 from .sfm import run_sfm
-from .spans import LineSupport, find_spans
+from .spans import LineSupport, Spans, find_spans
 from .support import (
     WireSupport,
     height_above_ground,
@@ -78,6 +79,7 @@ from .wires import (
     absorb_points,
     merge_pieces,
     nearest_wire,
+    refit,
     split_wires,
     trim_wire,
 )
@@ -677,8 +679,12 @@ def reconstruct(
         options.wires,
         options.verify.crossing_offset,
     )
-    wires, supports = spans.wires, [supports[k] for k in spans.source]
+    supports = [supports[k] for k in spans.source]
     timings["spans"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    wires, verified, dec = _traced_to_supports(spans, part.corridors, verified, scene, options)
+    decoded += dec
+    timings["trace_to_supports"] = time.perf_counter() - t0
     labels = np.full(len(verified), -1, np.int64)
     for w in wires:
         labels[w.point_indices] = w.wire_id
@@ -1307,6 +1313,130 @@ def _without_members(
         [dataclasses.replace(w, wire_id=i) for i, w in enumerate(kept)],
         [dataclasses.replace(s, wire_id=i) for i, s in enumerate(sup)],
     )
+
+
+def _traced_to_supports(
+    spans: Spans,
+    corridors: Sequence[WireCorridor],
+    verified: VerifiedPoints,
+    scene: Scene,
+    options: ReconstructionOptions,
+) -> tuple[list[FittedWire], VerifiedPoints, list[Path]]:
+    """The span wires traced on toward their supports, where they stop short of them.
+
+    Tracing runs before the supports are known, on wires that may run across a support in
+    one curve; past the support the next span's wire sags again and leaves that curve, and
+    the rounds past the end stop where it does (the real road flight's middle conductor of
+    its third span stopped 9 m short of the pole the images show it reaching). Once each
+    wire is cut at its supports its curve is the span's own: it is traced again past its
+    ends (:func:`trace_wires`, the same tests), up to its span's supports, or where it has
+    none, as far along the line as the line's other wires reach. Points are added only where
+    it had none (:func:`_where_unmeasured`: past its old ends, and in its gaps); the rest of
+    the wire stays as measured, and it stays drawn to the supports it was drawn to.
+
+    Returns the wires (refitted where they grew), the points with those added, and the
+    images read."""
+    wires = list(spans.wires)
+    if not options.trace.enabled or options.trace.extend == 0 or not wires:
+        return wires, verified, []
+    by_id = {s.support_id: s for s in spans.supports}
+    legs = spans.legs or [0] * len(wires)
+    decoded: list[Path] = []
+    for leg in sorted(set(legs)):
+        azimuth = corridors[leg].azimuth_deg
+        along, _ = plan_axes(azimuth)
+        on_leg = [k for k in range(len(wires)) if legs[k] == leg]
+        # Where each wire's points reach along the line (its curve may have been drawn on
+        # to a support already).
+        ends = {}
+        for k in on_leg:
+            own = verified.pts_in_world[wires[k].point_indices][:, :2] @ along
+            drawn = wires[k].points(np.array(wires[k].s_range))[:, :2] @ along
+            ends[k] = np.array([own.min(), own.max()]) if len(own) else np.sort(drawn)
+        short, limits = [], []
+        for k in on_leg:
+            place = spans.placement[k]
+            line = [j for j in on_leg if spans.placement[j].line == place.line]
+            line_lo = min(float(ends[j][0]) for j in line)
+            line_hi = max(float(ends[j][1]) for j in line)
+            mid = float(np.mean(ends[k]))
+            at = [
+                float(np.asarray(by_id[i].position)[:2] @ along)
+                for i in place.supports
+                if i is not None and i in by_id
+            ]
+            lo = max([u for u in at if u < mid], default=line_lo)
+            hi = min([u for u in at if u > mid], default=line_hi)
+            gap = max(ends[k][0] - lo, hi - ends[k][1])
+            if gap > options.trace.extend / 2:
+                short.append(k)
+                limits.append((lo, hi))
+        if not short:
+            continue
+        pts = verified.pts_in_world
+        n0 = len(pts)
+        grown, traced = trace_wires(
+            scene,
+            [wires[k] for k in short],
+            pts,
+            crop_wire_mask(options.detect, options.verify.template_length_px),
+            azimuth,
+            options.trace,
+            options.wires,
+            options.verify.tolerance_px,
+            options.verify.num_threads,
+            options.verify.margin_px,
+            options.detect,
+            [wires[k] for k in on_leg if k not in short],
+            template_length_px=options.verify.template_length_px,
+            limits=limits,
+        )
+        decoded += traced.decoded
+        all_pts = np.r_[pts, traced.pts_in_world]
+        keep = np.zeros(len(traced), bool)
+        for k, g in zip(short, grown, strict=True):
+            new = g.point_indices[g.point_indices >= n0]
+            keep[new[_where_unmeasured(wires[k], pts, all_pts[new])] - n0] = True
+        remap = np.full(len(all_pts), -1, np.int64)
+        remap[:n0] = np.arange(n0)
+        remap[n0 + np.flatnonzero(keep)] = n0 + np.arange(int(keep.sum()))
+        verified = verified.with_traced(traced.pts_in_world[keep], traced.views[keep])
+        for k, g in zip(short, grown, strict=True):
+            new = remap[g.point_indices[g.point_indices >= n0]]
+            new = new[new >= 0]
+            if len(new) == 0:
+                continue
+            idx = np.r_[wires[k].point_indices, new]
+            before = wires[k].s_range
+            fit = refit(wires[k], verified.pts_in_world, idx, along, options.wires)
+            # Still drawn to the supports it was drawn to.
+            drawn = np.sort(fit.plane_coords(wires[k].points(np.array(before)))[0])
+            s_range = (min(fit.s_range[0], drawn[0]), max(fit.s_range[1], drawn[1]))
+            wires[k] = dataclasses.replace(fit, s_range=(float(s_range[0]), float(s_range[1])))
+            logger.info(
+                "trace: wire %d traced on toward its span's ends %.1f..%.1f along the line: "
+                "s %.1f..%.1f -> %.1f..%.1f (%d points added)",
+                wires[k].wire_id,
+                *limits[short.index(k)],
+                *before,
+                *wires[k].s_range,
+                len(new),
+            )
+    return wires, verified, decoded
+
+
+def _where_unmeasured(wire: FittedWire, pts_in_world: F64, new: F64) -> npt.NDArray[np.bool_]:
+    """(len(new),) the points ``new`` on ``wire`` that lie where its own points do not: more
+    than twice their median spacing along it from the nearest of them (past its ends, or in
+    its gaps; elsewhere they would measure the wire a second time)."""
+    own = np.sort(wire.plane_coords(pts_in_world[wire.point_indices])[0])
+    s = wire.plane_coords(new)[0]
+    if len(own) < 2:
+        return np.ones(len(s), bool)
+    spacing = float(np.median(np.diff(own)))
+    i = np.clip(np.searchsorted(own, s), 1, len(own) - 1)
+    nearest = np.minimum(np.abs(s - own[i - 1]), np.abs(s - own[i]))
+    return nearest > 2 * spacing
 
 
 def _traced(

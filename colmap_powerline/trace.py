@@ -43,7 +43,8 @@ measured ends also a peak where the median of its and its neighbours' responses 
 curve over a few template lengths stands out; on the others only the detector's wire pixels
 do. The wires are refitted to their measured and traced points, and traced again past
 their new ends, ``extend`` at a time, while the views keep finding them there, no farther
-along the line than the measured wires reach. A round's points past an end
+along the line than the measured wires reach (or, once the supports are found, than the
+``limits`` of each wire's span). A round's points past an end
 that leave the curve continued by more than ``MAX_BEND`` standard errors (the fit's own,
 from its residuals, and the points'; across the wire also how far its vertical plane,
 continued as far, leaves its own confirmed points at its ends: a wire the wind blew out of
@@ -1220,6 +1221,7 @@ def trace_wires(
     primitives: F64 | None = None,
     groups: Sequence[int] | None = None,
     evident: Sequence[bool] | None = None,
+    limits: Sequence[tuple[float, float]] | None = None,
 ) -> tuple[list[FittedWire], TracedPoints]:
     """Measure each confirmed wire in every view that sees it (module docstring).
 
@@ -1247,6 +1249,9 @@ def trace_wires(
             (:mod:`colmap_powerline.faint`): a response peak that stands out counts on them
             from the start, as on a wire the views find, and their share is that of the
             places so found. None: none.
+        limits: (len(wires),) how far along the line (plan position along ``azimuth_deg``)
+            each wire may be traced, low and high: its span's supports, once they are known.
+            None: as far as the measured wires, the matches and the marked supports reach.
 
     Returns:
         The wires refitted to their measured and traced points (indices past
@@ -1311,7 +1316,7 @@ def trace_wires(
     )
     measured = (float(ends_along.min()), float(ends_along.max()))
     reach = measured
-    if primitives is not None:
+    if primitives is not None and limits is None:
         # Taken where the matches run on farther than a support's in-line hardware would
         # (0.8 m on the package's span across the line, where the verified wires reach the
         # supports; 9.5 m of wire that only one strip sees on the shared cross seed 2, 4.9 m
@@ -1323,7 +1328,11 @@ def trace_wires(
     # Where the measured wires stop short of a support the verified points mark beyond them
     # (the pairs see too little of the wire there, or the detector lost it over the ground
     # there), the trace may go on up to it.
-    marked = support_reach(wires, pts_in_world, along, options.extend, measured)
+    marked = (
+        support_reach(wires, pts_in_world, along, options.extend, measured)
+        if limits is None
+        else (None, None)
+    )
     if marked[0] is not None or marked[1] is not None:
         logger.info(
             "trace: the measured wires reach %.1f..%.1f along the line; supports marked "
@@ -1350,7 +1359,7 @@ def trace_wires(
         """The next extensions of wire ``k`` past a stretch of it fewer than three views
         see (``unfixed``), where its curve, continued, still predicts it within
         ``max_sigma`` (where the look lands): beyond, three may see it again."""
-        first, last = _along_limits(w, reach)
+        first, last = _along_limits(w, limit_of(k))
         out = []
         for j in (0, 1):
             if skip[j] or (k, j) not in unfixed or len(own) == 0:
@@ -1368,11 +1377,15 @@ def trace_wires(
                 out.append((a, b))
         return out
 
-    def _along_limits(w: FittedWire, limits: tuple[float, float]) -> tuple[float, float]:
-        """The wire's ``s`` where it reaches the limits along the line."""
+    def limit_of(k: int) -> tuple[float, float]:
+        """How far along the line wire ``k`` may be traced."""
+        return reach if limits is None else limits[k]
+
+    def _along_limits(w: FittedWire, bounds: tuple[float, float]) -> tuple[float, float]:
+        """The wire's ``s`` where it reaches ``bounds`` along the line."""
         rate = float(w.plane_direction_xy @ along)
         offset = float(w.plane_origin_xy @ along)
-        a, b = (limits[0] - offset) / rate, (limits[1] - offset) / rate
+        a, b = (bounds[0] - offset) / rate, (bounds[1] - offset) / rate
         return (min(a, b), max(a, b))
 
     for round_ in range(options.max_rounds + 1):
@@ -1522,7 +1535,7 @@ def trace_wires(
             # An end goes on while the views found the wire over most of the last extension,
             # up to where the measured wires reach along the line (their supports: past
             # them, the insulators, arms and the next span's wires).
-            first, last = _along_limits(fit, reach)
+            first, last = _along_limits(fit, limit_of(k))
             ends = []
             grew = [
                 round_ == 0 or lo < w.s_range[0] - options.extend / 2,

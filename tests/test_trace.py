@@ -141,6 +141,80 @@ def test_traced_points_measure_the_wire_and_reach_past_the_curve(small_scene, co
     assert all(out[k].point_indices.max() >= len(pts) for k in range(3))
 
 
+def test_a_wire_is_traced_as_far_along_the_line_as_its_limits(small_scene, conductors):
+    """Once the supports are known each wire may be given how far along the line it hangs:
+    a curve over 30-70 % of a conductor grows to limits at 15 % and 80 % of its length and
+    no farther, though the views see the wire on to its supports."""
+    truth = conductors[1]
+    wires, pts = _with_points([_curve(truth, 0, 0.3, 0.7, 0.0)])
+    along = wires[0].plane_direction_xy
+    lo, hi = truth.points(np.array([0.15, 0.8]) * truth.length_m)[:, :2] @ along
+    out, traced = _trace(
+        small_scene,
+        wires,
+        pts,
+        context=[_curve(conductors[3], 3, 0.0, 1.0, 0.0)],
+        limits=[(float(lo), float(hi))],
+    )
+    ends = out[0].points(np.array(out[0].s_range))[:, :2] @ along
+    assert ends.min() == pytest.approx(lo, abs=1.0)
+    assert ends.max() == pytest.approx(hi, abs=1.0)
+    reached = traced.pts_in_world[:, :2] @ along
+    assert reached.min() > lo - 0.5 and reached.max() < hi + 0.5
+
+
+def test_span_wires_are_traced_on_to_their_supports(small_scene, conductors):
+    """After the supports are found, a span's wire that stops short of them is traced on:
+    up to its support at one end (85 % of the conductor's length here, though the views see
+    the wire on), and as far as the line's other wire reaches where it has none. Its
+    measured points stay; the points added lie where it had none (past its old ends, and
+    in a 3 m gap between them); the wire that reaches its span's ends is left as it was."""
+    from colmap_powerline.pipeline import _traced_to_supports
+    from colmap_powerline.results import ReconstructionOptions
+    from colmap_powerline.spans import LineSupport, Spans, WireSpan
+
+    truth = conductors[1]
+    wires, pts = _with_points(
+        [_curve(truth, 0, 0.3, 0.7, 0.0), _curve(conductors[3], 1, 0.0, 1.0, 0.0)]
+    )
+    s_gap = wires[0].s_range[0] + np.array([10.0, 13.0])
+    s_pts = wires[0].plane_coords(pts[wires[0].point_indices])[0]
+    wires[0] = dataclasses.replace(
+        wires[0],
+        point_indices=wires[0].point_indices[(s_pts < s_gap[0]) | (s_pts > s_gap[1])],
+    )
+    at = truth.points(np.array([0.85 * truth.length_m]))[0]
+    support = LineSupport(0, 1, "suspension", at, float(at[2]), 0.0, (0, 1), "kink")
+    spans = Spans(
+        wires,
+        [WireSpan(1, 1, (None, 0), 0), WireSpan(1, 1, (None, None), 1)],
+        [support],
+        [0, 1],
+        [0, 0],
+    )
+    verified, corridor = _verified_and_corridor(pts, wires[0])
+    out, grown, _ = _traced_to_supports(
+        spans, [corridor], verified, small_scene, ReconstructionOptions()
+    )
+    along = wires[0].plane_direction_xy
+    ends = out[0].points(np.array(out[0].s_range))[:, :2] @ along
+    other = wires[1].points(np.array(wires[1].s_range))[:, :2] @ along
+    assert ends.min() == pytest.approx(other.min(), abs=1.0)
+    assert ends.max() == pytest.approx(at[:2] @ along, abs=1.0)
+    assert out[1] is wires[1]
+    assert np.isin(wires[0].point_indices, out[0].point_indices).all()
+    added = out[0].point_indices[out[0].point_indices >= len(pts)]
+    assert len(added) == len(grown) - len(pts) > 50
+    s_added = wires[0].plane_coords(grown.pts_in_world[added])[0]
+    s_own = np.sort(wires[0].plane_coords(pts[wires[0].point_indices])[0])
+    i = np.clip(np.searchsorted(s_own, s_added), 1, len(s_own) - 1)
+    nearest = np.minimum(np.abs(s_added - s_own[i - 1]), np.abs(s_added - s_own[i]))
+    assert nearest.min() > 2 * 0.2  # twice the measured points' spacing
+    assert np.sum((s_added > s_gap[0]) & (s_added < s_gap[1])) > 5
+    d = distance_to_polyline(grown.pts_in_world[added], truth.polyline(0.05))
+    assert np.median(d) < 0.04
+
+
 def test_no_wire_under_the_curve_no_points(small_scene, conductors):
     """A curve 6 m below a conductor, where no wire hangs: the views find nothing on it."""
     wires, pts = _with_points([_curve(conductors[0], 0, 0.2, 0.8, -6.0)])
