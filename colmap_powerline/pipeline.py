@@ -1353,12 +1353,19 @@ def _traced_to_supports(
             own = verified.pts_in_world[wires[k].point_indices][:, :2] @ along
             drawn = wires[k].points(np.array(wires[k].s_range))[:, :2] @ along
             ends[k] = np.array([own.min(), own.max()]) if len(own) else np.sort(drawn)
-        short, limits = [], []
+        short: list[int] = []
+        limits: list[tuple[float, float]] = []
+        supported: list[tuple[bool, bool]] = []  # whether a support sets each limit
+        # How far each line's wires reach on this leg: the limit at an end with no support.
+        reach: dict[int, tuple[float, float]] = {}
+        for k in on_leg:
+            line = spans.placement[k].line
+            lo_k, hi_k = float(ends[k][0]), float(ends[k][1])
+            old = reach.get(line, (lo_k, hi_k))
+            reach[line] = (min(old[0], lo_k), max(old[1], hi_k))
         for k in on_leg:
             place = spans.placement[k]
-            line = [j for j in on_leg if spans.placement[j].line == place.line]
-            line_lo = min(float(ends[j][0]) for j in line)
-            line_hi = max(float(ends[j][1]) for j in line)
+            line_lo, line_hi = reach[place.line]
             mid = float(np.mean(ends[k]))
             at = [
                 float(np.asarray(by_id[i].position)[:2] @ along)
@@ -1371,6 +1378,7 @@ def _traced_to_supports(
             if gap > options.trace.extend / 2:
                 short.append(k)
                 limits.append((lo, hi))
+                supported.append((any(u < mid for u in at), any(u > mid for u in at)))
         if not short:
             continue
         pts = verified.pts_in_world
@@ -1409,10 +1417,17 @@ def _traced_to_supports(
             idx = np.r_[wires[k].point_indices, new]
             before = wires[k].s_range
             fit = refit(wires[k], verified.pts_in_world, idx, along, options.wires)
-            # Still drawn to the supports it was drawn to.
+            # Still drawn to its supports' attachments, as it was; elsewhere as far as its
+            # points reach, within its limits (its points may run on past a support).
+            j = short.index(k)
             drawn = np.sort(fit.plane_coords(wires[k].points(np.array(before)))[0])
-            s_range = (min(fit.s_range[0], drawn[0]), max(fit.s_range[1], drawn[1]))
-            wires[k] = dataclasses.replace(fit, s_range=(float(s_range[0]), float(s_range[1])))
+            rate = float(fit.plane_direction_xy @ along)
+            offset = float(fit.plane_origin_xy @ along)
+            lim = sorted((u - offset) / rate for u in limits[j])
+            sup = supported[j] if rate > 0 else supported[j][::-1]
+            s_lo = drawn[0] if sup[0] else max(min(fit.s_range[0], drawn[0]), lim[0])
+            s_hi = drawn[1] if sup[1] else min(max(fit.s_range[1], drawn[1]), lim[1])
+            wires[k] = dataclasses.replace(fit, s_range=(float(s_lo), float(s_hi)))
             logger.info(
                 "trace: wire %d traced on toward its span's ends %.1f..%.1f along the line: "
                 "s %.1f..%.1f -> %.1f..%.1f (%d points added)",

@@ -166,9 +166,10 @@ def test_a_wire_is_traced_as_far_along_the_line_as_its_limits(small_scene, condu
 def test_span_wires_are_traced_on_to_their_supports(small_scene, conductors):
     """After the supports are found, a span's wire that stops short of them is traced on:
     up to its support at one end (85 % of the conductor's length here, though the views see
-    the wire on), and as far as the line's other wire reaches where it has none. Its
-    measured points stay; the points added lie where it had none (past its old ends, and
-    in a 3 m gap between them); the wire that reaches its span's ends is left as it was."""
+    the wire on; the spans drew it to it already, and it stays drawn so), and as far as the
+    line's other wire reaches where it has none. Its measured points stay; the points added
+    lie where it had none (past its old ends, and in a 3 m gap between them); the wire that
+    reaches its span's ends is left as it was."""
     from colmap_powerline.pipeline import _traced_to_supports
     from colmap_powerline.results import ReconstructionOptions
     from colmap_powerline.spans import LineSupport, Spans, WireSpan
@@ -185,6 +186,10 @@ def test_span_wires_are_traced_on_to_their_supports(small_scene, conductors):
     )
     at = truth.points(np.array([0.85 * truth.length_m]))[0]
     support = LineSupport(0, 1, "suspension", at, float(at[2]), 0.0, (0, 1), "kink")
+    # The spans drew it to its support's attachment, past its points.
+    wires[0] = dataclasses.replace(
+        wires[0], s_range=(wires[0].s_range[0], float(wires[0].plane_coords(at[None])[0][0]))
+    )
     spans = Spans(
         wires,
         [WireSpan(1, 1, (None, 0), 0), WireSpan(1, 1, (None, None), 1)],
@@ -211,6 +216,7 @@ def test_span_wires_are_traced_on_to_their_supports(small_scene, conductors):
     nearest = np.minimum(np.abs(s_added - s_own[i - 1]), np.abs(s_added - s_own[i]))
     assert nearest.min() > 2 * 0.2  # twice the measured points' spacing
     assert np.sum((s_added > s_gap[0]) & (s_added < s_gap[1])) > 5
+    assert s_added.max() > 0.8 * truth.length_m  # measured on toward the support
     d = distance_to_polyline(grown.pts_in_world[added], truth.polyline(0.05))
     assert np.median(d) < 0.04
 
