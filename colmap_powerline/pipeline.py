@@ -1409,7 +1409,7 @@ def _traced_to_supports(
         remap[:n0] = np.arange(n0)
         remap[n0 + np.flatnonzero(keep)] = n0 + np.arange(int(keep.sum()))
         verified = verified.with_traced(traced.pts_in_world[keep], traced.views[keep])
-        for k, g in zip(short, grown, strict=True):
+        for j, (k, g) in enumerate(zip(short, grown, strict=True)):
             new = remap[g.point_indices[g.point_indices >= n0]]
             new = new[new >= 0]
             if len(new) == 0:
@@ -1419,12 +1419,9 @@ def _traced_to_supports(
             fit = refit(wires[k], verified.pts_in_world, idx, along, options.wires)
             # Still drawn to its supports' attachments, as it was; elsewhere as far as its
             # points reach, within its limits (its points may run on past a support).
-            j = short.index(k)
             drawn = np.sort(fit.plane_coords(wires[k].points(np.array(before)))[0])
-            rate = float(fit.plane_direction_xy @ along)
-            offset = float(fit.plane_origin_xy @ along)
-            lim = sorted((u - offset) / rate for u in limits[j])
-            sup = supported[j] if rate > 0 else supported[j][::-1]
+            lim = fit.s_at_along(along, limits[j])
+            sup = supported[j] if fit.plane_direction_xy @ along > 0 else supported[j][::-1]
             s_lo = drawn[0] if sup[0] else max(min(fit.s_range[0], drawn[0]), lim[0])
             s_hi = drawn[1] if sup[1] else min(max(fit.s_range[1], drawn[1]), lim[1])
             wires[k] = dataclasses.replace(fit, s_range=(float(s_lo), float(s_hi)))
@@ -1432,7 +1429,7 @@ def _traced_to_supports(
                 "trace: wire %d traced on toward its span's ends %.1f..%.1f along the line: "
                 "s %.1f..%.1f -> %.1f..%.1f (%d points added)",
                 wires[k].wire_id,
-                *limits[short.index(k)],
+                *limits[j],
                 *before,
                 *wires[k].s_range,
                 len(new),

@@ -1359,7 +1359,7 @@ def trace_wires(
         """The next extensions of wire ``k`` past a stretch of it fewer than three views
         see (``unfixed``), where its curve, continued, still predicts it within
         ``max_sigma`` (where the look lands): beyond, three may see it again."""
-        first, last = _along_limits(w, limit_of(k))
+        first, last = w.s_at_along(along, limit_of(k))
         out = []
         for j in (0, 1):
             if skip[j] or (k, j) not in unfixed or len(own) == 0:
@@ -1380,13 +1380,6 @@ def trace_wires(
     def limit_of(k: int) -> tuple[float, float]:
         """How far along the line wire ``k`` may be traced."""
         return reach if limits is None else limits[k]
-
-    def _along_limits(w: FittedWire, bounds: tuple[float, float]) -> tuple[float, float]:
-        """The wire's ``s`` where it reaches ``bounds`` along the line."""
-        rate = float(w.plane_direction_xy @ along)
-        offset = float(w.plane_origin_xy @ along)
-        a, b = (bounds[0] - offset) / rate, (bounds[1] - offset) / rate
-        return (min(a, b), max(a, b))
 
     for round_ in range(options.max_rounds + 1):
         places = _places(wires, ranges, step, context, groups)
@@ -1535,7 +1528,7 @@ def trace_wires(
             # An end goes on while the views found the wire over most of the last extension,
             # up to where the measured wires reach along the line (their supports: past
             # them, the insulators, arms and the next span's wires).
-            first, last = _along_limits(fit, limit_of(k))
+            first, last = fit.s_at_along(along, limit_of(k))
             ends = []
             grew = [
                 round_ == 0 or lo < w.s_range[0] - options.extend / 2,

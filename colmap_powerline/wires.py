@@ -173,6 +173,14 @@ class FittedWire:
         across = rel @ across_of(d)
         return s, across, np.asarray(pts)[:, 2] - self.z_at(s)
 
+    def s_at_along(self, along: F64, bounds: tuple[float, float]) -> tuple[float, float]:
+        """The ``s`` where the wire's plane reaches the plan positions ``bounds`` along the
+        unit direction ``along`` (measured from the origin), in increasing order."""
+        rate = float(self.plane_direction_xy @ along)
+        offset = float(self.plane_origin_xy @ along)
+        a, b = (bounds[0] - offset) / rate, (bounds[1] - offset) / rate
+        return (min(a, b), max(a, b))
+
     def distance(self, pts: F64) -> F64:
         """(N,) distance of points to the curve (first order in the residuals)."""
         s, across, dz = self.plane_coords(pts)
