@@ -1330,7 +1330,10 @@ def _traced_to_supports(
     its third span stopped 9 m short of the pole the images show it reaching). Once each
     wire is cut at its supports its curve is the span's own: it is traced again past its
     ends (:func:`trace_wires`, the same tests), up to its span's supports, or where it has
-    none, as far along the line as the line's other wires reach. Points are added only where
+    none, as far along the line as the line's other wires reach. So is a wire whose gaps
+    leave as much of it unmeasured (:func:`_unmeasured_inside`): there too the search
+    followed a curve the wire's own now corrects (the shared generator's area survey, seed
+    5: a conductor's 4 m gap that two views see). Points are added only where
     it had none (:func:`_where_unmeasured`: past its old ends, and in its gaps); the rest of
     the wire stays as measured, and it stays drawn to the supports it was drawn to.
 
@@ -1375,7 +1378,9 @@ def _traced_to_supports(
             lo = max([u for u in at if u < mid], default=line_lo)
             hi = min([u for u in at if u > mid], default=line_hi)
             gap = max(ends[k][0] - lo, hi - ends[k][1])
-            if gap > options.trace.extend / 2:
+            if max(gap, _unmeasured_inside(wires[k], verified.pts_in_world)) > (
+                options.trace.extend / 2
+            ):
                 short.append(k)
                 limits.append((lo, hi))
                 supported.append((any(u < mid for u in at), any(u > mid for u in at)))
@@ -1435,6 +1440,16 @@ def _traced_to_supports(
                 len(new),
             )
     return wires, verified, decoded
+
+
+def _unmeasured_inside(wire: FittedWire, pts_in_world: F64) -> float:
+    """How much of the wire between its points' ends lies in their gaps (wider than twice
+    their median spacing, as :func:`_where_unmeasured` counts them)."""
+    own = np.sort(wire.plane_coords(pts_in_world[wire.point_indices])[0])
+    if len(own) < 3:
+        return 0.0
+    d = np.diff(own)
+    return float(d[d > 2 * np.median(d)].sum())
 
 
 def _where_unmeasured(wire: FittedWire, pts_in_world: F64, new: F64) -> npt.NDArray[np.bool_]:

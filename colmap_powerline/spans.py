@@ -588,7 +588,8 @@ def _one_per_plane(
     where the views see the line from above it matches at another height, on the next
     span's wire in plan. Each stretch between the curves' crossings, where they lie apart,
     goes to the wire the views that part them show (:func:`_told_apart`); the other loses
-    its points there and is refitted to the rest (left out when too little is left).
+    its points there and is refitted to the rest (left out when too little is left). Where
+    the views disagree (a third or more show the other), both lose them.
     Overlaps shorter than ``support_radius`` are left alone: a support's two spans meet in
     a bend, each carried a little past it."""
     greys: dict[Path, np.ndarray] = {}
@@ -606,9 +607,11 @@ def _one_per_plane(
             loser = _stretches_lost(out[i], out[j], leg, *touching, max_across, views, greys)
             if loser is not None:
                 which, lost = loser
-                changed = _give_up(
-                    work, (i, j)[which], lost, leg, pts_in_world, options, wires_options
-                )
+                # Both (j first: deleting it leaves i where it is) where the views disagree.
+                for k in (j, i) if which == 2 else ((i, j)[which],):
+                    changed |= _give_up(
+                        work, k, lost, leg, pts_in_world, options, wires_options, which == 2
+                    )
                 if changed:
                     break
 
@@ -642,9 +645,10 @@ def _stretches_lost(
     views: Sequence,
     greys: dict[Path, np.ndarray],
 ) -> tuple[int, tuple[float, float]] | None:
-    """The first of two wires in one plane (0: ``a``, 1: ``b``; ``dz``: their heights'
-    difference at ``u`` along the leg) that the views do not show between two of their
-    crossings, and that stretch (along the leg); None when no view tells them apart. Each
+    """The first of two wires in one plane (0: ``a``, 1: ``b``, 2: both, where the views
+    disagree; ``dz``: their heights' difference at ``u`` along the leg) that the views do
+    not show between two of their crossings, and that stretch (along the leg); None when no
+    view tells them apart. Each
     stretch is read where they lie more than ``max_apart`` apart (nearer the crossing the
     views cannot tell them) and goes to one of them up to the crossings."""
     sign = np.sign(dz)
@@ -657,9 +661,15 @@ def _stretches_lost(
         va, vb = _told_apart(
             views, a.points(leg.s_along(a, uu)), b.points(leg.s_along(b, uu)), greys
         )
-        if va == vb:
+        if va == vb == 0:
             continue
-        return int(va > vb), (float(u[s]), float(u[e - 1]))
+        # Where a third or more of the views that part them show the other curve, the
+        # views disagree: the stretch is neither's (on the road flight, 2 views against 1,
+        # turned by a hair's change in the points, over a stretch that ran across a pole:
+        # one side of it each wire's, and both curves off there). Tracing measures it
+        # again on each span's own curve once the supports are found.
+        which = 2 if max(va, vb) <= 2 * min(va, vb) else int(va > vb)
+        return which, (float(u[s]), float(u[e - 1]))
     return None
 
 
@@ -671,10 +681,12 @@ def _give_up(
     pts_in_world: F64,
     options: SpanOptions,
     wires_options: WiresOptions,
+    disputed: bool = False,
 ) -> bool:
     """Wire ``k`` of ``work`` without its points in the ``lost`` stretch (along the leg):
     refitted to the longer side of the rest, or left out when that is no wire. False when
-    it has no points to give up there."""
+    it has no points to give up there. ``disputed``: the views disagree there (both wires
+    give it up)."""
     w = work.wires[k]
     idx = w.point_indices
     u = leg.u(pts_in_world[idx, :2])
@@ -687,9 +699,10 @@ def _give_up(
         if kept is w or np.ptp(leg.ends_u(kept)) < options.min_piece_m:
             kept = None
     logger.info(
-        "spans: wire %d lies in one plane with another wire and the views show the other "
-        "along %.1f-%.1f: %s",
+        "spans: wire %d lies in one plane with another wire and the views show %s along "
+        "%.1f-%.1f: %s",
         w.wire_id,
+        "either, or neither," if disputed else "the other",
         *lost,
         "left out" if kept is None else "those points left out",
     )
@@ -804,7 +817,18 @@ def find_spans(
     located = _located(work, axes, found, options, max_across)
     line_of_leg, line_ids = _lines(work, len(axes), located)
     # 6. Chainage along each line, spans between its supports, attachments, conductors.
-    return _placed(work, axes, located, line_of_leg, line_ids, ground_height, options)
+    return _placed(
+        work,
+        axes,
+        located,
+        line_of_leg,
+        line_ids,
+        ground_height,
+        options,
+        pts_in_world,
+        wires_options,
+        max_across,
+    )
 
 
 def _kinks(
@@ -1149,10 +1173,14 @@ def _placed(
     line_ids: dict[int, int],
     ground_height: Callable[[F64], F64],
     options: SpanOptions,
+    pts_in_world: F64,
+    wires_options: WiresOptions,
+    past: float,
 ) -> Spans:
     """Chainage along each line, the supports numbered along it, each wire's span between
-    them, its attachments (its fitted curve extended or cut back to them), the supports'
-    heights and wires, and the conductors."""
+    them, its attachments (its fitted curve extended or cut back to them; its points more
+    than ``past`` beyond one are the next span's, and it is refitted without them), the
+    supports' heights and wires, and the conductors."""
     out, out_legs = work.wires, work.legs
     chainage = _chainages(axes, merged, line_of_leg, out, out_legs)
     sup_ch = [chainage[m[0][0]](m[1]) for m in merged]
@@ -1210,15 +1238,33 @@ def _placed(
         if after and min(after)[0] - ch[1] <= options.max_meeting_gap:
             bounds.append(min(after)[1])
         spans_key.append((line, len(before)))
+        # Extended to each support, or cut back to it: past its attachment (by less than
+        # ``support_radius``, else the wire was cut there) a curve is the next span's, and
+        # so are its points there (on the road flight, span 3's road-side conductor held
+        # 3.7 m of span 2's points past their pole, and span 2's wires up to 7 m of span 3's).
+        ends = _attachments(w, [(sid, supports_out[sid].position[:2], arms[sid]) for sid in bounds])
+        if ends:
+            s_pts = w.plane_coords(pts_in_world[w.point_indices])[0]
+            inside = np.ones(len(s_pts), bool)
+            for _, side, s_att in ends:
+                inside &= s_pts >= s_att - past if side == 0 else s_pts <= s_att + past
+            if not inside.all() and inside.sum() >= wires_options.min_points:
+                fit = refit(
+                    w, pts_in_world, w.point_indices[inside], axes[li].direction, wires_options
+                )
+                if fit is not w:
+                    logger.info(
+                        "spans: wire %d: %d points past its supports' attachments left out",
+                        w.wire_id,
+                        int((~inside).sum()),
+                    )
+                    w = fit
+                    ends = _attachments(
+                        w, [(sid, supports_out[sid].position[:2], arms[sid]) for sid in bounds]
+                    )
         s_lo, s_hi = w.s_range
         at_end: list[int | None] = [None, None]
-        for sid in bounds:
-            s_att = _s_on_arm(w, supports_out[sid].position[:2], arms[sid])
-            if s_att is None:
-                continue
-            side = 0 if s_att < 0.5 * (w.s_range[0] + w.s_range[1]) else 1
-            # Extended to it, or cut back to it: past its attachment (by less than
-            # ``support_radius``, else the wire was cut there) a curve is the next span's.
+        for sid, side, s_att in ends:
             s_lo, s_hi = (s_att, s_hi) if side == 0 else (s_lo, s_att)
             at_end[side] = sid
             attached.setdefault(sid, []).append((k, w.points(np.array([s_att]))[0]))
@@ -1255,6 +1301,20 @@ def _placed(
             len(numbers),
         )
     return Spans(out, placement, supports_out, work.source, out_legs)
+
+
+def _attachments(
+    w: FittedWire, supports: list[tuple[int, F64, F64]]
+) -> list[tuple[int, int, float]]:
+    """(support id, end: 0 low s, 1 high s, s) where ``w``'s plane meets each support's
+    cross-arm (``supports``: id, plan position, arm direction), but for arms it runs
+    parallel to."""
+    out = []
+    for sid, xy, arm in supports:
+        s_att = _s_on_arm(w, xy, arm)
+        if s_att is not None:
+            out.append((sid, 0 if s_att < 0.5 * (w.s_range[0] + w.s_range[1]) else 1, s_att))
+    return out
 
 
 def _chainages(

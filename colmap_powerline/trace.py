@@ -36,28 +36,31 @@ along the wires from one strip give nearly the same plane and cannot fix a point
 combination with views offset across the wire does.
 
 Each view's offset on each wire (its pose error, how the wire looks there) is estimated from
-the places the other views check and removed. On a wire the views find (its traced share),
-a response peak above the detector's contrast threshold counts as the wire centre (the
-curve is the evidence the detector's length filter gives elsewhere), and between the wire's
+the places the other views check and removed. On a wire the views find (its traced share), a
+response peak above the detector's contrast threshold counts as the wire centre (the curve
+is the evidence the detector's length filter gives elsewhere), and between the wire's
 measured ends also a peak where the median of its and its neighbours' responses along the
 curve over a few template lengths stands out; on the others only the detector's wire pixels
-do. The wires are refitted to their measured and traced points, and traced again past
-their new ends, ``extend`` at a time, while the views keep finding them there, no farther
-along the line than the measured wires reach (or, once the supports are found, than the
-``limits`` of each wire's span). A round's points past an end
-that leave the curve continued by more than ``MAX_BEND`` standard errors (the fit's own,
-from its residuals, and the points'; across the wire also how far its vertical plane,
-continued as far, leaves its own confirmed points at its ends: a wire the wind blew out of
-the vertical bows in plan) are dropped and that end stops: past a support the next span's
-wire bends away or the line turns, and clutter a peak test took does not follow a
-catenary. "While the views keep finding them" means at no less than ``MIN_EXTEND_SHARE``
-of the rate at which they find the wire along its confirmed stretch: a round whose end
-they find less often is dropped and that end stops (a field's rows along the line give
-chance agreements at a few places, and those do follow a curve, refitted to them). Where a
-round past an end finds that fewer than three views see the wire at all (an area survey's
-strips see a shield in stretches 5-20 m apart), nothing says the wire ends there: the next
-round looks on from where that one looked, while the curve continued predicts the wire
-where it looks to the precision a point must have.
+do. The wires are refitted to their measured and traced points, and traced again past their
+new ends, ``extend`` at a time, while the views keep finding them there, no farther along
+the line than the measured wires reach (or, once the supports are found, than the ``limits``
+of each wire's span). In a round past the ends, the wires whose ends have stopped are
+context: their images still narrow the search beside them (without, a shield traced on past
+where the conductors had stopped ran 50 m on beside them, 28 cm off, on the shared
+generator's flight across the line, seed 6), but for where one lies on the wire traced on
+(another piece of it). A round's points past an end that leave the curve continued by more
+than ``MAX_BEND`` standard errors (the fit's own, from its residuals, and the points';
+across the wire also how far its vertical plane, continued as far, leaves its own confirmed
+points at its ends: a wire the wind blew out of the vertical bows in plan) are dropped and
+that end stops: past a support the next span's wire bends away or the line turns, and
+clutter a peak test took does not follow a catenary. "While the views keep finding them"
+means at no less than ``MIN_EXTEND_SHARE`` of the rate at which they find the wire along its
+confirmed stretch: a round whose end they find less often is dropped and that end stops (a
+field's rows along the line give chance agreements at a few places, and those do follow a
+curve, refitted to them). Where a round past an end finds that fewer than three views see
+the wire at all (an area survey's strips see a shield in stretches 5-20 m apart), nothing
+says the wire ends there: the next round looks on from where that one looked, while the
+curve continued predicts the wire where it looks to the precision a point must have.
 """
 
 from __future__ import annotations
@@ -925,11 +928,17 @@ def _places(
     step: F64,
     context: list[FittedWire],
     groups: Sequence[int] | None = None,
+    context_groups: Sequence[int] | None = None,
+    distinct: tuple[int, float] | None = None,
 ) -> _Places | None:
     """Places every ``step[k]`` over the ``ranges`` of each wire, then over the whole of
-    each context wire (None: no place on the wires); ``groups``: each wire's look."""
+    each context wire (None: no place on the wires); ``groups``: each wire's look, and
+    ``context_groups`` each context wire's (None: -1, beside every look). ``distinct``
+    (first, distance): the context wires from ``first`` on have no place within that
+    distance of a wire's place (there they are that wire, measured in another piece)."""
     if not any(hi > lo for rs in ranges for lo, hi in rs):
         return None
+    n_context = len(context)
     wires = wires + context
     ranges = ranges + [[c.s_range] for c in context]
     step = np.r_[step, np.full(len(context), np.min(step) if len(step) else 0.1)]
@@ -948,14 +957,27 @@ def _places(
             inside.append((s >= w.s_range[0]) & (s <= w.s_range[1]))
     if not pts:
         return None
+    wire_all, pts_all = np.concatenate(wire), np.concatenate(pts)
+    keep = np.ones(len(wire_all), bool)
+    if distinct is not None:
+        mine = wire_all < len(wires) - n_context
+        later = wire_all >= len(wires) - n_context + distinct[0]
+        if mine.any() and later.any():
+            near = cKDTree(pts_all[mine]).query(pts_all[later], distance_upper_bound=distinct[1])[0]
+            keep[np.flatnonzero(later)[np.isfinite(near)]] = False
     return _Places(
-        np.concatenate(pts),
-        np.concatenate(wire),
-        np.concatenate(across),
-        np.concatenate(tangent),
+        pts_all[keep],
+        wire_all[keep],
+        np.concatenate(across)[keep],
+        np.concatenate(tangent)[keep],
         len(wires) - len(context),
-        None if groups is None else np.r_[np.asarray(groups, np.int64), np.full(len(context), -1)],
-        np.concatenate(inside),
+        None
+        if groups is None
+        else np.r_[
+            np.asarray(groups, np.int64),
+            np.full(n_context, -1) if context_groups is None else context_groups,
+        ],
+        np.concatenate(inside)[keep],
     )
 
 
@@ -1382,9 +1404,24 @@ def trace_wires(
         return reach if limits is None else limits[k]
 
     for round_ in range(options.max_rounds + 1):
-        places = _places(wires, ranges, step, context, groups)
+        # Past the ends, the wires whose ends have stopped still make the places beside
+        # them ambiguous: their whole curves are this round's context, but for where one
+        # lies on a wire traced on (within the inlier distance: a piece of that wire).
+        idle = [k for k, rs in enumerate(ranges) if not any(hi > lo for lo, hi in rs)]
+        places = _places(
+            wires,
+            ranges,
+            step,
+            context + [wires[k] for k in idle],
+            groups,
+            None
+            if groups is None
+            else np.array([-1] * len(context) + [groups[k] for k in idle], np.int64),
+            (len(context), wires_options.inlier_distance) if idle else None,
+        )
         if places is None:
             break
+        n_idle = len(idle)
         obs, dec = _look(
             scene,
             places,
@@ -1400,7 +1437,11 @@ def trace_wires(
         # Past the ends, on the wires the views find, a peak that stands out will do too
         # (what it takes that is not the wire, the bend test below drops).
         sol = _measure(
-            obs, places, tolerance_px, bias, found[places.wire] if found is not None else None
+            obs,
+            places,
+            tolerance_px,
+            bias,
+            np.r_[found, np.zeros(n_idle, bool)][places.wire] if found is not None else None,
         )
         if sigma_px is None:
             sigma_px = _image_noise(sol, tolerance_px)

@@ -220,6 +220,11 @@ def test_a_wire_carried_a_little_past_its_support_ends_at_its_attachment():
     # the wires' measurements end, 2 m short of the end towers).
     at_end = np.abs(np.abs(x_ends) - 180.0) < 2.5
     assert np.all((near_inner < 0.5) | at_end), x_ends
+    # Its points past the pole are the next span's: left out, and the wire fitted without
+    # them (within the wires' tolerance of the attachment, 2.5 inlier distances).
+    out = sp.wires[[sp.source[k] for k in range(len(sp.wires))].index(4 * 2 + 1)]
+    assert pts[out.point_indices, 0].max() <= 0.3
+    assert out.catenary_a == pytest.approx(900.0, rel=0.05)
 
 
 def test_a_straight_line_s_conductors_are_split_into_one_wire_per_span():
@@ -589,3 +594,45 @@ def test_a_line_ends_where_the_views_of_all_its_wires_together_say_so(tmp_path):
     )
     sp = _terminal_spans(views, rng)
     assert [s.kind for s in sp.supports] == ["end"]
+
+
+@pytest.mark.parametrize(
+    ("votes", "loser"),
+    [((1, 0), 1), ((0, 3), 0), ((3, 1), 1), ((2, 1), 2), ((2, 2), 2), ((0, 0), None)],
+)
+def test_a_stretch_the_views_disagree_on_goes_to_neither_wire(monkeypatch, votes, loser):
+    """Two curves in one plane: the stretch where they lie apart goes to the one the views
+    show; where a third or more of those views show the other, to neither (2: both give it
+    up; on the road flight 2 views against 1 decided a stretch that ran across a pole, and a
+    hair's change in the points turned it); where no view parts them, to both (None)."""
+    from colmap_powerline import spans
+
+    monkeypatch.setattr(spans, "_told_apart", lambda *a: votes)
+    pts = np.c_[np.linspace(0.0, 30.0, 200), np.zeros(200), np.linspace(30.0, 31.0, 200)]
+    a = _wire(pts, np.arange(200), np.array([1.0, 0.0]), 0)
+    b = dataclasses.replace(a, wire_id=1, z0=a.z0 + 1.0)
+    u = np.linspace(0.0, 30.0, 121)
+    leg = spans._Leg(_corridor(90.0))
+    lost = spans._stretches_lost(a, b, leg, u, np.full(121, -1.0), 0.3, [], {})
+    assert (None if lost is None else lost[0]) == loser
+
+
+def test_both_wires_give_up_a_stretch_the_views_disagree_on(monkeypatch):
+    """Two wires in one plane crossing at x = 15: where the views disagree, neither keeps
+    its points in the stretch past the crossing (both are refitted to the rest)."""
+    from colmap_powerline import spans
+
+    # No view parts them before the crossing; past it they disagree.
+    monkeypatch.setattr(
+        spans, "_told_apart", lambda views, a, b, greys: (2, 1) if a[:, 0].mean() > 15 else (0, 0)
+    )
+    x = np.linspace(0.0, 30.0, 301)
+    pts = np.r_[np.c_[x, 0 * x, 30.0 + 0.04 * x], np.c_[x, 0 * x, 31.2 - 0.04 * x]]
+    wires = [_wire(pts, np.arange(301) + 301 * k, np.array([1.0, 0.0]), k) for k in (0, 1)]
+    work = spans._Work(list(wires), [0, 1], [0, 0], set(), 2)
+    axes = [spans._Leg(_corridor(90.0))]
+    spans._one_per_plane(work, axes, [], pts, SpanOptions(), WiresOptions(), 0.3)
+    assert len(work.wires) == 2
+    for w in work.wires:
+        x_kept = pts[w.point_indices, 0]
+        assert x_kept.max() < 16.0 and x_kept.min() < 1.0  # the stretch past 15 given up

@@ -221,6 +221,90 @@ def test_span_wires_are_traced_on_to_their_supports(small_scene, conductors):
     assert np.median(d) < 0.04
 
 
+def test_a_span_wire_with_a_gap_is_traced_again_there(small_scene, conductors):
+    """A span wire that reaches its span's ends but leaves 4 m of it unmeasured between them
+    (more than half a trace step) is traced again: points are added in its gap, on the
+    wire, and nowhere it had points; a wire with no gap is left as it was."""
+    from colmap_powerline.pipeline import _traced_to_supports
+    from colmap_powerline.results import ReconstructionOptions
+    from colmap_powerline.spans import Spans, WireSpan
+
+    truth = conductors[1]
+    wires, pts = _with_points(
+        [_curve(truth, 0, 0.0, 1.0, 0.0), _curve(conductors[3], 1, 0.0, 1.0, 0.0)]
+    )
+    s_gap = wires[0].s_range[0] + 0.4 * truth.length_m + np.array([0.0, 4.0])
+    s_pts = wires[0].plane_coords(pts[wires[0].point_indices])[0]
+    wires[0] = dataclasses.replace(
+        wires[0],
+        point_indices=wires[0].point_indices[(s_pts < s_gap[0]) | (s_pts > s_gap[1])],
+    )
+    spans = Spans(
+        wires, [WireSpan(1, 1, (None, None), 0), WireSpan(1, 1, (None, None), 1)], [], [0, 1],
+        [0, 0],
+    )  # fmt: skip
+    verified, corridor = _verified_and_corridor(pts, wires[0])
+    out, grown, _ = _traced_to_supports(
+        spans, [corridor], verified, small_scene, ReconstructionOptions()
+    )
+    assert out[1] is wires[1]
+    assert np.isin(wires[0].point_indices, out[0].point_indices).all()
+    added = out[0].point_indices[out[0].point_indices >= len(pts)]
+    s_added = wires[0].plane_coords(grown.pts_in_world[added])[0]
+    in_gap = (s_added > s_gap[0]) & (s_added < s_gap[1])
+    assert in_gap.sum() >= 8  # every 2.5 px of the nearest view (0.3 m here)
+    assert np.ptp(s_added) > 2.5  # across the gap, but for twice the points' spacing
+    assert in_gap.all()  # nowhere it had points (within twice their spacing of the gap)
+    d = distance_to_polyline(grown.pts_in_world[added], truth.polyline(0.05))
+    assert np.median(d) < 0.04
+
+
+def test_places_keep_context_wires_apart_from_the_wire_traced_on(conductors):
+    """In a round past the ends, a wire whose ends have stopped is context for the one traced
+    on beside it (its places narrow the search there), except where it lies on that wire
+    (another piece of it: there it is that wire)."""
+    beside = _curve(conductors[0], 0, 0.0, 1.0, 0.0)
+    on = _curve(conductors[3], 1, 0.3, 0.7, 0.0)
+    piece = _curve(conductors[3], 2, 0.55, 1.0, 0.0)  # ahead of ``on``'s end, overlapping
+    lo, hi = on.s_range[1], on.s_range[1] + 5.0
+    places = _places([on], [[(lo, hi)]], np.array([0.1]), [beside, piece], None, None, (0, 0.15))
+    assert places is not None and places.n_traced == 1
+    s_beside = beside.plane_coords(places.pts[places.wire == 1])[0]
+    s_piece = piece.plane_coords(places.pts[places.wire == 2])[0]
+    assert s_beside.min() < lo and s_beside.max() > hi  # the whole wire beside
+    assert len(s_piece) > 0 and not ((s_piece > lo + 0.1) & (s_piece < hi - 0.1)).any()
+    # Without ``distinct``, the piece is context where the wire is traced on, too.
+    every = _places([on], [[(lo, hi)]], np.array([0.1]), [beside, piece])
+    assert every is not None
+    s_all = piece.plane_coords(every.pts[every.wire == 2])[0]
+    assert ((s_all > lo) & (s_all < hi)).sum() > 40
+
+
+def test_wires_whose_ends_stopped_are_context_past_the_ends(small_scene, conductors, monkeypatch):
+    """trace_wires: the rounds past the ends look for a wire traced on with the wires whose
+    ends have stopped as context (a shield traced on past the conductors' ends would
+    otherwise take a conductor's image for its own)."""
+    import colmap_powerline.trace as trace
+
+    calls = []
+    real = trace._places
+
+    def spy(wires, ranges, step, context, *args):
+        calls.append(([w.wire_id for w in wires], [c.wire_id for c in context]))
+        return real(wires, ranges, step, context, *args)
+
+    monkeypatch.setattr(trace, "_places", spy)
+    wires, pts = _with_points(
+        [_curve(conductors[0], 0, 0.0, 1.0, 0.0), _curve(conductors[3], 1, 0.3, 0.7, 0.0)]
+    )
+    out, _ = _trace(small_scene, wires, pts)
+    assert calls[0][1] == []  # round 0: every wire is traced over its whole stretch
+    # Once wire 0's ends stop (both at the measured wires' reach), it is context.
+    # (The last call, with both stopped, has no place to look at and ends the rounds.)
+    assert [0] in [c[1] for c in calls[1:]] and all(c[1] in ([], [0]) for c in calls[:-1])
+    assert out[1].s_range[1] - out[1].s_range[0] > 0.6 * conductors[3].length_m
+
+
 def test_no_wire_under_the_curve_no_points(small_scene, conductors):
     """A curve 6 m below a conductor, where no wire hangs: the views find nothing on it."""
     wires, pts = _with_points([_curve(conductors[0], 0, 0.2, 0.8, -6.0)])
