@@ -648,9 +648,9 @@ def _stretches_lost(
     """The first of two wires in one plane (0: ``a``, 1: ``b``, 2: both, where the views
     disagree; ``dz``: their heights' difference at ``u`` along the leg) that the views do
     not show between two of their crossings, and that stretch (along the leg); None when no
-    view tells them apart. Each
-    stretch is read where they lie more than ``max_apart`` apart (nearer the crossing the
-    views cannot tell them) and goes to one of them up to the crossings."""
+    view tells them apart. Each stretch is read where they lie more than ``max_apart`` apart
+    (nearer the crossing the views cannot tell them) and goes to one of them up to the
+    crossings."""
     sign = np.sign(dz)
     cuts = np.flatnonzero(sign[1:] != sign[:-1]) + 1
     for s, e in zip(np.r_[0, cuts], np.r_[cuts, len(u)], strict=True):
