@@ -1442,25 +1442,31 @@ def _traced_to_supports(
     return wires, verified, decoded
 
 
+def _own_spacing(wire: FittedWire, pts_in_world: F64) -> tuple[F64, float]:
+    """The wire's points' positions along it (sorted) and their median spacing (NaN: fewer
+    than two points)."""
+    own = np.sort(wire.plane_coords(pts_in_world[wire.point_indices])[0])
+    return own, float(np.median(np.diff(own))) if len(own) >= 2 else float("nan")
+
+
 def _unmeasured_inside(wire: FittedWire, pts_in_world: F64) -> float:
     """How much of the wire between its points' ends lies in their gaps (wider than twice
     their median spacing, as :func:`_where_unmeasured` counts them)."""
-    own = np.sort(wire.plane_coords(pts_in_world[wire.point_indices])[0])
+    own, spacing = _own_spacing(wire, pts_in_world)
     if len(own) < 3:
         return 0.0
     d = np.diff(own)
-    return float(d[d > 2 * np.median(d)].sum())
+    return float(d[d > 2 * spacing].sum())
 
 
 def _where_unmeasured(wire: FittedWire, pts_in_world: F64, new: F64) -> npt.NDArray[np.bool_]:
     """(len(new),) the points ``new`` on ``wire`` that lie where its own points do not: more
     than twice their median spacing along it from the nearest of them (past its ends, or in
     its gaps; elsewhere they would measure the wire a second time)."""
-    own = np.sort(wire.plane_coords(pts_in_world[wire.point_indices])[0])
+    own, spacing = _own_spacing(wire, pts_in_world)
     s = wire.plane_coords(new)[0]
     if len(own) < 2:
         return np.ones(len(s), bool)
-    spacing = float(np.median(np.diff(own)))
     i = np.clip(np.searchsorted(own, s), 1, len(own) - 1)
     nearest = np.minimum(np.abs(s - own[i - 1]), np.abs(s - own[i]))
     return nearest > 2 * spacing

@@ -1242,7 +1242,8 @@ def _placed(
         # ``support_radius``, else the wire was cut there) a curve is the next span's, and
         # so are its points there (on the road flight, span 3's road-side conductor held
         # 3.7 m of span 2's points past their pole, and span 2's wires up to 7 m of span 3's).
-        ends = _attachments(w, [(sid, supports_out[sid].position[:2], arms[sid]) for sid in bounds])
+        held_by = [(sid, supports_out[sid].position[:2], arms[sid]) for sid in bounds]
+        ends = _attachments(w, held_by)
         if ends:
             s_pts = w.plane_coords(pts_in_world[w.point_indices])[0]
             inside = np.ones(len(s_pts), bool)
@@ -1259,9 +1260,7 @@ def _placed(
                         int((~inside).sum()),
                     )
                     w = fit
-                    ends = _attachments(
-                        w, [(sid, supports_out[sid].position[:2], arms[sid]) for sid in bounds]
-                    )
+                    ends = _attachments(w, held_by)
         s_lo, s_hi = w.s_range
         at_end: list[int | None] = [None, None]
         for sid, side, s_att in ends:

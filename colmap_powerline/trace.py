@@ -938,7 +938,7 @@ def _places(
     distance of a wire's place (there they are that wire, measured in another piece)."""
     if not any(hi > lo for rs in ranges for lo, hi in rs):
         return None
-    n_context = len(context)
+    n_traced = len(wires)
     wires = wires + context
     ranges = ranges + [[c.s_range] for c in context]
     step = np.r_[step, np.full(len(context), np.min(step) if len(step) else 0.1)]
@@ -960,8 +960,8 @@ def _places(
     wire_all, pts_all = np.concatenate(wire), np.concatenate(pts)
     keep = np.ones(len(wire_all), bool)
     if distinct is not None:
-        mine = wire_all < len(wires) - n_context
-        later = wire_all >= len(wires) - n_context + distinct[0]
+        mine = wire_all < n_traced
+        later = wire_all >= n_traced + distinct[0]
         if mine.any() and later.any():
             near = cKDTree(pts_all[mine]).query(pts_all[later], distance_upper_bound=distinct[1])[0]
             keep[np.flatnonzero(later)[np.isfinite(near)]] = False
@@ -970,12 +970,12 @@ def _places(
         wire_all[keep],
         np.concatenate(across)[keep],
         np.concatenate(tangent)[keep],
-        len(wires) - len(context),
+        n_traced,
         None
         if groups is None
         else np.r_[
             np.asarray(groups, np.int64),
-            np.full(n_context, -1) if context_groups is None else context_groups,
+            np.full(len(context), -1) if context_groups is None else context_groups,
         ],
         np.concatenate(inside)[keep],
     )
