@@ -25,10 +25,11 @@ import pycolmap
 from scipy.spatial import cKDTree
 
 from .detect import DetectOptions
-from .geometry import distance_to_polyline
+from .geometry import distance_to_polyline, positions_across
 from .scene import SceneImage
 from .synthetic import TrueWire
 from .trace import image_normals
+from .verify import VerifyOptions
 from .wires import WiresOptions
 
 F64 = npt.NDArray[np.float64]
@@ -157,6 +158,31 @@ class Evaluation:
         }
 
 
+def _counting_views(
+    views: Sequence[SceneImage], pts: F64, others: F64, hidden_px: float
+) -> list[tuple[SceneImage, npt.NDArray[np.int64]]]:
+    """Per view, the points ``pts`` it sees inside its image by ``MEASURABLE_MARGIN_PX``
+    where no point of ``others`` projects within ``hidden_px`` (hidden behind a neighbour)."""
+    out = []
+    for view in views:
+        uv, _, inside = view.project(pts)
+        inside &= (
+            (uv[:, 0] > MEASURABLE_MARGIN_PX)
+            & (uv[:, 1] > MEASURABLE_MARGIN_PX)
+            & (uv[:, 0] < view.width - MEASURABLE_MARGIN_PX)
+            & (uv[:, 1] < view.height - MEASURABLE_MARGIN_PX)
+        )
+        if inside.any() and len(others):
+            uvo, _, ino = view.project(others)
+            if ino.any():
+                d = cKDTree(uvo[ino]).query(uv[inside], distance_upper_bound=hidden_px)[0]
+                inside[np.flatnonzero(inside)[d < hidden_px]] = False
+        idx = np.flatnonzero(inside)
+        if len(idx):
+            out.append((view, idx))
+    return out
+
+
 def measurable_points(
     views: Sequence[SceneImage],
     pts: F64,
@@ -186,22 +212,7 @@ def measurable_points(
     across = np.stack([horizontal, up], axis=1)  # (n, 2, 3)
     normal = np.zeros((len(pts), 2, 2))
     seen = np.zeros(len(pts), np.int64)
-    for view in views:
-        uv, _, inside = view.project(pts)
-        inside &= (
-            (uv[:, 0] > MEASURABLE_MARGIN_PX)
-            & (uv[:, 1] > MEASURABLE_MARGIN_PX)
-            & (uv[:, 0] < view.width - MEASURABLE_MARGIN_PX)
-            & (uv[:, 1] < view.height - MEASURABLE_MARGIN_PX)
-        )
-        if inside.any() and len(others):
-            uvo, _, ino = view.project(others)
-            if ino.any():
-                d = cKDTree(uvo[ino]).query(uv[inside], distance_upper_bound=hidden_px)[0]
-                inside[np.flatnonzero(inside)[d < hidden_px]] = False
-        idx = np.flatnonzero(inside)
-        if len(idx) == 0:
-            continue
+    for view, idx in _counting_views(views, pts, others, hidden_px):
         _, row = image_normals(view, pts[idx], tangent[idx])
         a = np.einsum("nj,nkj->nk", row, across[idx])
         normal[idx] += a[:, :, None] * a[:, None, :]
@@ -212,6 +223,45 @@ def measurable_points(
     with np.errstate(divide="ignore", invalid="ignore"):
         sigma = np.where(smallest > 0, sigma_px / np.sqrt(smallest), np.inf)
     return (seen >= 3) & (sigma <= max_sigma)
+
+
+def positions_seen(
+    views: Sequence[SceneImage],
+    pts: F64,
+    tangent: F64,
+    others: F64,
+    hidden_px: float | None = None,
+    offset: float | None = None,
+) -> npt.NDArray[np.int64]:
+    """(N,) at each point ``pts`` (N, 3) of a wire with unit ``tangent`` (N, 3), how many
+    positions across the wire the views that see it (as :func:`measurable_points` counts
+    them) hold, each ``offset`` × the views' height above the point from the one before
+    (default: the verification's crossing offset, the distance at which a view can tell a
+    pair's false match): what the issue's targets call strips. A flight along the wire whose
+    three strips see a point gives 3; views of a flight across the line spread along their
+    strip, so they give as many positions as that spread holds."""
+    if hidden_px is None:
+        hidden_px = DetectOptions().side_offset_px + 2.0
+    if offset is None:
+        offset = VerifyOptions().crossing_offset
+    counting = _counting_views(views, pts, others, hidden_px)
+    across_xy = np.c_[tangent[:, 1], -tangent[:, 0]]
+    across_xy /= np.maximum(np.linalg.norm(across_xy, axis=1, keepdims=True), 1e-12)
+    lateral: list[list[float]] = [[] for _ in range(len(pts))]
+    height: list[list[float]] = [[] for _ in range(len(pts))]
+    for view, idx in counting:
+        c = view.center_in_world
+        lat = np.einsum("nj,nj->n", c[:2] - pts[idx, :2], across_xy[idx])
+        for k, la, h in zip(idx, lat, c[2] - pts[idx, 2], strict=True):
+            lateral[k].append(float(la))
+            height[k].append(float(h))
+    return np.array(
+        [
+            positions_across(np.array(la), offset * float(np.median(h))) if la else 0
+            for la, h in zip(lateral, height, strict=True)
+        ],
+        np.int64,
+    )
 
 
 def _true_sag_over(truth: TrueWire, fitted: FittedWireLike) -> float:

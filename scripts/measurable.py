@@ -15,7 +15,10 @@ wire's image passes closer than tracing can tell two lines apart (``--hidden_px`
 template's side offset plus two pixels, as tracing's search narrowed beside another wire):
 there the wire is hidden behind its neighbour in that view. Reported per true wire: the
 measurable share of its length, the completeness (within 10 cm, as ``score.py``) over the
-whole wire, over its measurable part and over the rest.
+whole wire, over its measurable part and over the rest; then the share of its length that is
+measurable and seen from three or more positions across it (the issue's "three or more
+strips": views that far apart can tell a false pairing, ``evaluate.positions_seen``), and the
+completeness there. Elsewhere only two strips, or one, see the wire.
 """
 
 from __future__ import annotations
@@ -30,7 +33,7 @@ import open3d as o3d
 from scipy.spatial import cKDTree
 
 from colmap_powerline.detect import DetectOptions
-from colmap_powerline.evaluate import measurable_points
+from colmap_powerline.evaluate import measurable_points, positions_seen
 from colmap_powerline.scene import load_scene
 from colmap_powerline.wires import WiresOptions
 
@@ -83,12 +86,20 @@ def main(argv: list[str] | None = None) -> int:
     lines = [np.asarray(w["polyline"], np.float64) for w in truth]
     dense = [_samples(p, DENSE_STEP)[0] for p in lines]
     rows = []
-    print("wire        kind     len m  measurable %  compl %  in measurable %  elsewhere %")
+    print(
+        "wire        kind     len m  measurable %  compl %  in measurable %  elsewhere %"
+        "  3+ positions %  in those %"
+    )
     for i, w in enumerate(truth):
         pts, tangent = _samples(lines[i])
         others = np.concatenate([d for j, d in enumerate(dense) if j != i])
         measurable = measurable_points(
             scene.images, pts, tangent, others, args.sigma_px, args.hidden_px, max_sigma
+        )
+        # Where three or more positions across the wire see it (the issue's "three or more
+        # strips"): elsewhere only two strips, or one, see it.
+        three = measurable & (
+            positions_seen(scene.images, pts, tangent, others, args.hidden_px) >= 3
         )
         hit = (
             tree.query(pts, distance_upper_bound=TOLERANCE)[0] <= TOLERANCE
@@ -104,13 +115,17 @@ def main(argv: list[str] | None = None) -> int:
             "completeness_pct": _pct(hit, np.ones(len(pts), bool)),
             "completeness_measurable_pct": _pct(hit, measurable),
             "completeness_elsewhere_pct": _pct(hit, ~measurable),
+            "three_positions_pct": float(100 * three.mean()),
+            "completeness_three_positions_pct": _pct(hit, three),
         }
         rows.append(row)
         print(
             f"{str(row['wire']):11s} {row['kind']:7s} {row['length_m']:6.1f} "
             f"{_f(row['measurable_pct']):>13s} {_f(row['completeness_pct']):>8s} "
             f"{_f(row['completeness_measurable_pct']):>16s} "
-            f"{_f(row['completeness_elsewhere_pct']):>12s}"
+            f"{_f(row['completeness_elsewhere_pct']):>12s} "
+            f"{_f(row['three_positions_pct']):>15s} "
+            f"{_f(row['completeness_three_positions_pct']):>11s}"
         )
     if args.json:
         args.json.write_text(json.dumps(rows, indent=1))

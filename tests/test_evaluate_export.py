@@ -17,6 +17,7 @@ from colmap_powerline.evaluate import (
     distance_to_polyline,
     evaluate,
     measurable_points,
+    positions_seen,
 )
 from colmap_powerline.export import export_results, read_point_cloud
 from colmap_powerline.files import write_atomic
@@ -131,6 +132,30 @@ def test_views_of_one_strip_along_a_wire_do_not_measure_it_and_a_second_strip_do
     # Another wire's image within the hidden distance takes the views it hides.
     other = pts + [0.0, 0.001, 0.0]
     assert not measurable_points(over + beside, pts, tangent, other, hidden_px=3.0).any()
+
+
+def test_positions_across_count_strips_along_and_views_spread_across():
+    # A straight wire along x, 20 m up; views 50 m up (30 m over it): a view counts as a new
+    # position 0.15 x 30 = 4.5 m across from the one before.
+    pts = np.c_[np.linspace(-10, 10, 21), np.zeros(21), np.full(21, 20.0)]
+    tangent = np.tile([1.0, 0.0, 0.0], (21, 1))
+    none = np.zeros((0, 3))
+
+    def strip(k0: int, y: float) -> list[SceneImage]:
+        return [_nadir(k0 + k, x, y) for k, x in enumerate(range(-20, 21, 10))]
+
+    assert (positions_seen(strip(0, 0.0), pts, tangent, none) == 1).all()
+    assert (positions_seen(strip(0, 0.0) + strip(10, 12.0), pts, tangent, none) == 2).all()
+    three = strip(0, 0.0) + strip(10, 12.0) + strip(20, -12.0)
+    assert (positions_seen(three, pts, tangent, none) == 3).all()
+    # Two strips 3 m apart are one position; a strip across the line, views 6 m apart
+    # across the wire, gives one position per view.
+    assert (positions_seen(strip(0, 0.0) + strip(10, 3.0), pts, tangent, none) == 1).all()
+    across = [_nadir(30 + k, 0.0, y) for k, y in enumerate((-6.0, 0.0, 6.0))]
+    assert positions_seen(across, pts[8:13], tangent[8:13], none).tolist() == [3] * 5
+    # A view where another wire's image lies on this one does not count.
+    other = pts + [0.0, 0.001, 0.0]
+    assert (positions_seen(three, pts, tangent, other, hidden_px=3.0) == 0).all()
 
 
 def test_the_targets_hold_on_the_wires_the_flight_measures():
