@@ -54,10 +54,13 @@ def _add_synthetic_flags(p: argparse.ArgumentParser, default_scale: float) -> No
         default=Layout.SPAN,
         help="span: one span between two towers; angle: two spans turning by --turn_deg at "
         "an angle tower (flights corridor, along4: strips along each leg); crossing: the span "
-        "and a pole line crossing it at --crossing_deg (flight grid) (default %(default)s)",
+        "and a pole line crossing it at --crossing_deg (flight grid); branch: the crossing, "
+        "the pole line going on past its second pole and a two-wire line leaving that pole at "
+        "--branch_deg (flight grid) (default %(default)s)",
     )
     p.add_argument("--turn_deg", type=float, default=SyntheticSpanOptions.turn_deg)
     p.add_argument("--crossing_deg", type=float, default=SyntheticSpanOptions.crossing_deg)
+    p.add_argument("--branch_deg", type=float, default=SyntheticSpanOptions.branch_deg)
     p.add_argument("--seed", type=int, default=0)
 
 
@@ -70,6 +73,7 @@ def _synthetic_options(args: argparse.Namespace) -> SyntheticSpanOptions:
         layout=args.layout,
         turn_deg=args.turn_deg,
         crossing_deg=args.crossing_deg,
+        branch_deg=args.branch_deg,
         seed=args.seed,
         show_progress=not args.quiet,
     )

@@ -10,6 +10,7 @@ together cover the span are kept.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import logging
 from collections.abc import Sequence
@@ -450,6 +451,82 @@ def direction_candidates(
         ground_z,
         flying,
     )
+
+
+# How far around a support its images are read for lines leaving it (model units): a
+# branch line's first span or more.
+NEAR_SUPPORT_M = 30.0
+
+
+def directions_near(
+    scene: Scene, top: F64, ground_z: float, options: PairsOptions
+) -> tuple[list[tuple[float, float]], list[Path]]:
+    """The horizontal directions of the long thin lines around a support (``top``: its
+    highest attachment; ``ground_z``: the ground under it), (azimuth, weight) strongest
+    first, and the images read.
+
+    The images that see the support from its foot to its top, up to
+    ``num_direction_images`` of them whose centres lie nearest it, are read at full
+    resolution within ``NEAR_SUPPORT_M`` of it, and their directions ranked as the wider look
+    ranks an image's (:func:`direction_candidates`), the template as long in pixels as
+    there. Around a support, the lines that leave it are a large share of what the images
+    show: the road flight's line across the field, 2 wires of ~10 mm, is the second direction
+    around the pole it leaves and twenty-somethingth over the whole survey."""
+    pts = np.array([top, [top[0], top[1], ground_z]])
+    seeing = []
+    for view in scene.images:
+        uv, depth, ok = view.project(pts)
+        margin = 0.05 * view.width
+        if ok.all() and (
+            (uv[:, 0] > margin).all()
+            and (uv[:, 0] < view.width - margin).all()
+            and (uv[:, 1] > margin).all()
+            and (uv[:, 1] < view.height - margin).all()
+        ):
+            seeing.append((float(np.hypot(*(view.center_in_world[:2] - top[:2]))), view, uv, depth))
+    seeing.sort(key=lambda t: t[0])
+    azimuths, contrasts, read = [], [], []
+    for _, view, uv, depth in seeing[: options.num_direction_images]:
+        r = int(view.focal_px * NEAR_SUPPORT_M / depth[0])
+        c = np.round(uv[0]).astype(int)
+        x0, x1 = max(c[0] - r, 0), min(c[0] + r, view.width)
+        y0, y1 = max(c[1] - r, 0), min(c[1] + r, view.height)
+        gray = read_image(view.path, cv2.IMREAD_GRAYSCALE)[y0:y1, x0:x1].astype(np.float32)
+        read.append(view.path)
+        # The template as long (in pixels) as the wider look's on the whole image.
+        crop_options = dataclasses.replace(
+            options, template_length_frac=options.template_length_frac * view.width / gray.shape[1]
+        )
+        step = max(1, int(crop_options.template_length_frac * gray.shape[1]) // 16)
+        for angle, contrast in _image_directions(gray, crop_options, WIDE_PEAKS, True, step):
+            azimuths.append(_world_azimuth(view, angle, float(top[2])))
+            contrasts.append(contrast)
+    if not azimuths:
+        return [], read
+    return _ranked_directions(
+        np.asarray(azimuths), np.asarray(contrasts), options.candidate_tolerance_deg,
+        LOST_CANDIDATES * options.max_candidates,
+    ), read  # fmt: skip
+
+
+def anchored_corridor(
+    scene: Scene,
+    azimuth: float,
+    at_xy: F64,
+    half_width: float,
+    z: float,
+    height_range: tuple[float, float],
+    options: PairsOptions,
+) -> WireCorridor:
+    """A provisional band of ``half_width`` either side of a line in direction ``azimuth``
+    through plan point ``at_xy`` (a support it leaves), its wires near height ``z``."""
+    direction, normal = plan_axes(azimuth)
+    c0, s0 = float(at_xy @ normal), float(at_xy @ direction)
+    reach = np.array([s0 - NEAR_SUPPORT_M, s0 + NEAR_SUPPORT_M])
+    return _band_corridor(
+        scene, azimuth, (c0 - half_width, c0 + half_width), reach, z, height_range, options,
+        False, (),
+    )  # fmt: skip
 
 
 def footprint_along(scene: Scene, corridor: WireCorridor) -> float:

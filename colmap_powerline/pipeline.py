@@ -44,8 +44,10 @@ from .pairs import (
     DirectionCandidates,
     ImagePair,
     WireCorridor,
+    anchored_corridor,
     corridor_from_points,
     direction_candidates,
+    directions_near,
     footprint_along,
     provisional_corridors,
     select_pairs,
@@ -339,7 +341,9 @@ def probe_corridor(scene: Scene, options: ReconstructionOptions) -> WireCorridor
     return probe_corridors(scene, options)[0]
 
 
-def _another_line(probe: _Probe, found: Sequence[_Probe], tolerance_deg: float) -> bool:
+def _another_line(
+    probe: _Probe, found: Sequence[_Probe | WireCorridor], tolerance_deg: float
+) -> bool:
     """Whether a probe measured a line other than those found: wires enough for a line, in
     a direction of their own (a probe across the found line's wires at another angle
     measures that line's direction again)."""
@@ -470,6 +474,86 @@ def probe_corridors(
             ", ".join(f"{c.azimuth_deg:.1f}" for c in corridors),
         )
     return corridors
+
+
+# Of the directions around a support not along a line found, the strongest this many are
+# probed for a line leaving it.
+BRANCH_CANDIDATES = 2
+
+
+def branch_corridors(
+    scene: Scene,
+    supports: Sequence[LineSupport],
+    corridors: Sequence[WireCorridor],
+    options: ReconstructionOptions,
+    tasks: Tasks | None = None,
+) -> tuple[list[WireCorridor], list[Path]]:
+    """Lines that leave a support of a line found (a branch line from a junction pole), and
+    the images read to look for them.
+
+    Over the whole survey a thin line that a few of its images cross is outvoted by roads,
+    field rows and the main line (the road flight's line across the field: two wires of
+    ~10 mm, 20-somethingth of the wider look's directions). Lines end and branch at
+    supports, and around one the lines that leave it are a large share of what the images
+    show (:func:`directions_near`). The strongest ``BRANCH_CANDIDATES`` directions there
+    that no corridor runs along are probed in a band through the support (its radius,
+    ``SpanOptions.support_radius``, either side), as the first look probes a direction;
+    a probe that measures a line's wires in a direction of their own, reaching past the
+    support, gives a corridor."""
+    if options.pairs.wire_azimuth_deg is not None or not supports:
+        return [], []
+    tol = options.pairs.line_tolerance_deg
+    known = [c.azimuth_deg for c in corridors]
+    radius = options.spans.support_radius
+    provs, at = [], []
+    decoded: list[Path] = []
+    for sup in supports:
+        if not np.isfinite(sup.top_z):
+            continue
+        top = np.r_[sup.position[:2], sup.top_z]
+        ground = float(sup.position[2])
+        near, read = directions_near(scene, top, ground, options.pairs)
+        decoded += read
+        fresh = [a for a, _ in near if all(axial_diff_deg(a, k) >= tol for k in known)]
+        for azimuth in fresh[:BRANCH_CANDIDATES]:
+            provs.append(
+                anchored_corridor(
+                    scene, azimuth, sup.position[:2], radius, float(sup.top_z),
+                    (ground + options.triangulate.min_wire_height, float(sup.top_z) + radius),
+                    options.pairs,
+                )
+            )  # fmt: skip
+            at.append(sup)
+        logger.info(
+            "branches: support %d: directions around it %s; probing %s",
+            sup.support_id,
+            [round(a, 1) for a, _ in near[:6]],
+            [round(a, 1) for a in fresh[:BRANCH_CANDIDATES]],
+        )
+    found: list[WireCorridor] = []
+    for (probe, read), sup in zip(
+        (tasks or Tasks()).map(_probe, provs, scene, options), at, strict=True
+    ):
+        decoded += read
+        if probe is None or not _another_line(probe, [*corridors, *found], tol):
+            continue
+        # A line leaving the support runs on past it (tower members and cross-arms do not).
+        past = np.hypot(*(probe.pts_in_world[:, :2] - sup.position[:2]).T) > 2 * radius
+        if past.sum() < options.wires.min_points:
+            continue
+        logger.info(
+            "branches: a line leaves support %d at %.1f° (%d wires, %.0f m of wire)",
+            sup.support_id,
+            probe.azimuth_deg,
+            probe.num_wires,
+            probe.length,
+        )
+        found.append(
+            corridor_from_points(
+                scene, probe.pts_in_world, probe.azimuth_deg, options.pairs, probe.corridor
+            )
+        )
+    return found, decoded
 
 
 def _pair_primitives(
@@ -653,7 +737,26 @@ def reconstruct(
         timings["pairs"] = time.perf_counter() - t0
         decoded = [p for c in corridors for p in c.decoded]
         parts = _reconstruct_corridors(scene, corridors, options, timings, tasks, store)
-    part = _merged(parts, options.wires.inlier_distance, options.wires.max_gap)
+        part = _merged(parts, options.wires.inlier_distance, options.wires.max_gap)
+        t0 = time.perf_counter()
+        spans = _spans_of(scene, part, options)
+        timings["spans"] = time.perf_counter() - t0
+        # Lines that leave a support of those found (a branch line from a junction pole).
+        t0 = time.perf_counter()
+        branches, read = branch_corridors(scene, spans.supports, part.corridors, options, tasks)
+        decoded += read
+        more = (
+            _reconstruct_corridors(scene, branches, options, timings, tasks, store, required=False)
+            if branches
+            else []
+        )
+        timings["branches"] = time.perf_counter() - t0
+        if more:
+            parts += more
+            part = _merged(parts, options.wires.inlier_distance, options.wires.max_gap)
+            t0 = time.perf_counter()
+            spans = _spans_of(scene, part, options)
+            timings["spans"] += time.perf_counter() - t0
     corridor, pairs, primitives, verified = (
         part.corridor,
         part.pairs,
@@ -667,20 +770,7 @@ def reconstruct(
         part.n_candidates,
     )
     decoded += part.decoded
-    t0 = time.perf_counter()
-    spans = find_spans(
-        scene.images,
-        scene.ground_height,
-        wires,
-        part.legs,
-        part.corridors,
-        verified.pts_in_world,
-        options.spans,
-        options.wires,
-        options.verify.crossing_offset,
-    )
     supports = [supports[k] for k in spans.source]
-    timings["spans"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     wires, verified, dec = _traced_to_supports(spans, part.corridors, verified, scene, options)
     decoded += dec
@@ -1009,6 +1099,21 @@ def _support_members_of(
     return out
 
 
+def _spans_of(scene: Scene, part: CorridorResult, options: ReconstructionOptions) -> Spans:
+    """The supports and spans of the corridors' wires (:func:`find_spans`)."""
+    return find_spans(
+        scene.images,
+        scene.ground_height,
+        part.wires,
+        part.legs,
+        part.corridors,
+        part.verified.pts_in_world,
+        options.spans,
+        options.wires,
+        options.verify.crossing_offset,
+    )
+
+
 def _reconstruct_corridors(
     scene: Scene,
     corridors: Sequence[WireCorridor],
@@ -1016,13 +1121,14 @@ def _reconstruct_corridors(
     timings: dict[str, float],
     tasks: Tasks | None,
     store: Store | None = None,
+    required: bool = True,
 ) -> list[CorridorResult]:
     """Every corridor's result, in order. A long line is cut into tiles
     (:func:`line_tiles`). On Dask workers each tile is a task when there are several (each
     runs its pairs one after the other); one tile runs here, its pairs as tasks. With a
     ``store``, each tile is kept when done and taken from it when a run with the same
-    inputs and options did it before. A line other than the first without pairs or wires
-    is left out, with a warning."""
+    inputs and options did it before. A line other than the first (or, not ``required``,
+    any) without pairs or wires is left out, with a warning."""
     tasks = tasks or Tasks()
     tiles = [t for k, c in enumerate(corridors) for t in line_tiles(scene, c, k, options)]
     # Several tiles on workers: one task each, its pairs in it, no progress bars from the
@@ -1064,7 +1170,7 @@ def _reconstruct_corridors(
                 done.append(dataclasses.replace(part, pairs=[own(p) for p in part.pairs]))
         if done:
             parts.append(_joined_tiles(c, done, options))
-        elif k == 0:
+        elif k == 0 and required:
             raise InputError(why[0])
         else:
             logger.warning("line at %.1f°: %s", c.azimuth_deg, why[0])

@@ -84,7 +84,12 @@ def _plan(result: ReconstructionResult, units: str, path: Path) -> Path:
         ax.annotate(str(w.wire_id), p[0, :2], fontsize=9, fontweight="bold")
         for f in m.flagged:
             ax.plot(*f.lowest_clearance_point[:2], "rx", ms=10, mew=2)
-    marks = {"suspension": ("s", "suspension"), "angle": ("D", "angle"), "end": ("^", "end")}
+    marks = {
+        "suspension": ("s", "suspension"),
+        "angle": ("D", "angle"),
+        "junction": ("*", "junction"),
+        "end": ("^", "end"),
+    }
     for kind, (marker, label) in marks.items():
         sup = [t for t in result.line_supports if t.kind == kind]
         if sup:
@@ -371,7 +376,8 @@ def _supports_table(result: ReconstructionResult, units: str) -> str:
     if not result.line_supports:
         return "<p>No support found (the wires end where the images end).</p>"
     rows = "".join(
-        f"<tr><td>S{t.support_id}</td><td>{t.line}</td><td>{t.kind}</td>"
+        f"<tr><td>S{t.support_id}</td><td>{', '.join(str(n) for n in t.lines)}</td>"
+        f"<td>{t.kind}</td>"
         f"<td>{t.position[0]:.2f}</td><td>{t.position[1]:.2f}</td>"
         f"<td>{t.top_z - t.position[2]:.2f}</td><td>{t.turn_deg:.1f}</td>"
         f"<td>{len(t.wire_ids)}</td><td>{t.found_by}</td></tr>"

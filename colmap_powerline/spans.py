@@ -50,7 +50,13 @@ import numpy.typing as npt
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
-from .geometry import across_of, axial_diff_deg, distance_to_polyline, positions_across
+from .geometry import (
+    across_of,
+    axial_diff_deg,
+    azimuth_deg_of,
+    distance_to_polyline,
+    positions_across,
+)
 from .options import check_limits
 from .pairs import WireCorridor
 from .scene import read_image
@@ -66,6 +72,10 @@ I64 = npt.NDArray[np.int64]
 MIN_VIEWS_BEYOND = 3
 # How far past the ends that place is looked at (model units): past the insulators.
 BEYOND_M = (5.0, 10.0)
+# A wire whose plane turns this far from its leg's direction is not along the leg (an
+# angle tower's other leg, a line that leaves a junction): the wires' own planes give a
+# line's direction within a degree or two.
+MAX_TURN_DEG = 5.0
 
 
 @dataclass(kw_only=True)
@@ -105,7 +115,8 @@ class LineSupport:
         support_id: 0, 1, … in the order of the lines and along each line.
         line: the line it carries (1, 2, …).
         kind: ``suspension`` (the line runs straight through), ``angle`` (it turns there
-            by ``turn_deg``) or ``end`` (the line ends there).
+            by ``turn_deg``), ``end`` (the line ends there) or ``junction`` (the line runs
+            through and another line leaves it, at ``turn_deg`` to it: ``lines``).
         position: (3,) its centre: in plan, midway across its wires on the line's axis; z
             the ground under it.
         top_z: the height of its highest attachment (model frame).
@@ -127,6 +138,12 @@ class LineSupport:
     top_wire: int | None = None  # the wire of its highest attachment
     top_from: str = ""  # that wire's kind (``shield``/``conductor``, set once the kinds are
     # known): a conductor where the line's shields were not found, the structure is higher
+    lines: tuple[int, ...] = ()  # every line it carries (a junction's: the line running
+    # through first, then those that leave it; given empty: ``(line,)``)
+
+    def __post_init__(self) -> None:
+        if not self.lines:
+            object.__setattr__(self, "lines", (self.line,))
 
     def to_json(self, convert: Callable[[F64], F64] | None = None) -> dict:
         pos = self.position if convert is None else convert(self.position[None])[0]
@@ -142,6 +159,7 @@ class LineSupport:
             "found_by": self.found_by,
             "reach_m": self.reach_m,
             "top_from": self.top_from or None,
+            "lines": list(self.lines),
         }
 
 
@@ -813,14 +831,16 @@ def find_spans(
         for li, u, how, ids in found
     ]
     found = _one_per_place(found, options)
-    # 5. Supports of two legs at one place: an angle support, and the legs one line.
-    located = _located(work, axes, found, options, max_across)
-    line_of_leg, line_ids = _lines(work, len(axes), located)
+    # 5. Supports of two legs at one place: an angle support, and the legs one line; or a
+    # junction, where one leg runs on through and the other leaves it, a line of its own.
+    located, junction = _located(work, axes, found, options, max_across)
+    line_of_leg, line_ids = _lines(work, len(axes), located, junction)
     # 6. Chainage along each line, spans between its supports, attachments, conductors.
     return _placed(
         work,
         axes,
         located,
+        junction,
         line_of_leg,
         line_ids,
         ground_height,
@@ -1114,10 +1134,11 @@ def _cut_at_supports(
 
 def _located(
     work: _Work, axes: list[_Leg], found: list[_Found], options: SpanOptions, max_across: float
-) -> list[_Located]:
+) -> tuple[list[_Located], list[bool]]:
     """Each support in plan (midway across the wires that touch it); supports of two legs
     at one place are one angle support, placed where each conductor's two spans' vertical
-    planes cross."""
+    planes cross, or a junction (flagged) where one of the legs runs on through it: that
+    leg first, placed as it found it."""
     out = work.wires
     located = []
     for li, u, how, ids in found:
@@ -1127,35 +1148,77 @@ def _located(
         c_mid = 0.5 * (min(cs) + max(cs)) if cs else 0.0
         located.append(([li], leg.xy(u, c_mid), how, set(ids) | {out[k].wire_id for k in near}))
     merged: list[_Located] = []
+    own: list[dict[int, F64]] = []  # each merged support's place as each of its legs found it
     for item in located:
-        for m in merged:
+        for m, places in zip(merged, own, strict=True):
             if np.linalg.norm(m[1] - item[1]) <= 2 * options.support_radius and set(m[0]) != set(
                 item[0]
             ):
                 m[0].extend(item[0])
                 m[3].update(item[3])
                 m[1][:] = 0.5 * (m[1] + item[1])
+                places.setdefault(item[0][0], item[1].copy())
                 break
         else:
             merged.append((list(item[0]), item[1].copy(), item[2], set(item[3])))
+            own.append({item[0][0]: item[1].copy()})
+    junction = [False] * len(merged)
+    for i, m in enumerate(merged):
+        if len(set(m[0])) < 2:
+            continue
+        # A leg whose wires hang on both sides of the place runs on through it: the other
+        # legs leave it, lines of their own (a branch line from a junction pole: the road
+        # flight's line across the field leaves the road line's pole at 78°). A line that
+        # turns ends each leg there.
+        through = [li for li in dict.fromkeys(m[0]) if _runs_through(work, axes, li, m[1], options)]
+        if through:
+            junction[i] = True
+            first = through[0]
+            legs_m = [first] + [li for li in m[0] if li != first]
+            merged[i] = (legs_m, own[i].get(first, m[1]).copy(), m[2], m[3])
     # At an angle support each conductor's two spans hang in vertical planes that cross
     # at its attachment: the support lies midway between the outermost of those crossings.
     for i, m in enumerate(merged):
-        if len(set(m[0])) > 1:
+        if len(set(m[0])) > 1 and not junction[i]:
             at = _plane_crossings(out, work.legs, m, axes, options, max_across)
             if len(at) >= 2:
                 d, arm = _arm(axes, m[0])
                 c = at @ arm
                 m[1][:] = np.mean(at @ d) * d + 0.5 * (c.min() + c.max()) * arm
                 merged[i] = (m[0], m[1], "spans crossing", m[3])
-    return merged
+    return merged, junction
 
 
-def _lines(work: _Work, n_legs: int, located: list[_Located]) -> tuple[I64, dict[int, int]]:
-    """Legs joined at a support they share are one line: each leg's line label, and the
-    lines numbered from 1 in the order of their first leg (the main line first)."""
+def _runs_through(work: _Work, axes: list[_Leg], li: int, xy: F64, options: SpanOptions) -> bool:
+    """Whether wires of leg ``li`` hang on both sides of a support at plan ``xy``: on each
+    side a wire along the leg (its plane within ``MAX_TURN_DEG`` of the leg's direction)
+    covers the place half ``max_meeting_gap`` from it (a span, however little of it was
+    measured near the support, not a stretch one curve carried past its support; nor
+    another leg's wires a corridor measured near an angle tower)."""
+    leg = axes[li]
+    u = float(leg.u(xy)[0])
+    reach = options.max_meeting_gap / 2
+    before = after = False
+    for k in work.on_leg(li):
+        w = work.wires[k]
+        if axial_diff_deg(azimuth_deg_of(w.plane_direction_xy), leg.azimuth_deg) > MAX_TURN_DEG:
+            continue
+        lo, hi = leg.ends_u(w)
+        before |= lo <= u - reach <= hi
+        after |= lo <= u + reach <= hi
+    return before and after
+
+
+def _lines(
+    work: _Work, n_legs: int, located: list[_Located], junction: list[bool]
+) -> tuple[I64, dict[int, int]]:
+    """Legs joined at an angle support they share are one line (not at a junction): each
+    leg's line label, and the lines numbered from 1 in the order of their first leg (the
+    main line first)."""
     rows, cols = list(range(n_legs)), list(range(n_legs))
-    for m in located:
+    for m, j in zip(located, junction, strict=True):
+        if j:
+            continue
         rows += [m[0][0]] * len(m[0])
         cols += m[0]
     graph = coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(n_legs, n_legs))
@@ -1169,6 +1232,7 @@ def _placed(
     work: _Work,
     axes: list[_Leg],
     merged: list[_Located],
+    junction: list[bool],
     line_of_leg: I64,
     line_ids: dict[int, int],
     ground_height: Callable[[F64], F64],
@@ -1182,7 +1246,13 @@ def _placed(
     than ``past`` beyond one are the next span's, and it is refitted without them), the
     supports' heights and wires, and the conductors."""
     out, out_legs = work.wires, work.legs
-    chainage = _chainages(axes, merged, line_of_leg, out, out_legs)
+    chainage = _chainages(
+        axes,
+        [m for m, j in zip(merged, junction, strict=True) if not j],
+        line_of_leg,
+        out,
+        out_legs,
+    )
     sup_ch = [chainage[m[0][0]](m[1]) for m in merged]
     order = sorted(
         range(len(merged)), key=lambda i: (line_ids[int(line_of_leg[merged[i][0][0]])], sup_ch[i])
@@ -1198,9 +1268,18 @@ def _placed(
             ),
             default=0.0,
         )
-        kind = (
-            "angle" if len(set(legs_m)) > 1 else ("end" if how == "wires ending" else "suspension")
-        )
+        if junction[mi]:
+            kind = "junction"
+            turn = min(
+                float(axial_diff_deg(axes[legs_m[0]].azimuth_deg, axes[b].azimuth_deg))
+                for b in legs_m[1:]
+            )
+        else:
+            kind = (
+                "angle"
+                if len(set(legs_m)) > 1
+                else ("end" if how == "wires ending" else "suspension")
+            )
         supports_out.append(
             LineSupport(
                 support_id=new_id,
@@ -1211,11 +1290,19 @@ def _placed(
                 turn_deg=float(turn),
                 wire_ids=(),
                 found_by=how,
+                lines=tuple(dict.fromkeys(line_ids[int(line_of_leg[li])] for li in legs_m)),
             )
         )
     # Each support's cross-arm in plan: across its leg, or along the bisector of the turn
     # at an angle support (each conductor keeps its offset from the line on both legs).
-    arms = [_arm(axes, merged[mi][0])[1] for mi in order]
+    # At a junction, each line's wires across its own leg.
+    arms = [_arm(axes, merged[mi][0][:1] if junction[mi] else merged[mi][0])[1] for mi in order]
+    leg_arms = {
+        (new_id, li): _arm(axes, [li])[1]
+        for new_id, mi in enumerate(order)
+        if junction[mi]
+        for li in merged[mi][0]
+    }
     placement: list[WireSpan] = []
     attached: dict[int, list[tuple[int, F64]]] = {}
     spans_key: list[tuple[int, int]] = []
@@ -1225,9 +1312,9 @@ def _placed(
         ends_xy = w.points(np.array(w.s_range))[:, :2]
         ch = sorted(chainage[li](xy) for xy in ends_xy)
         on_line = [
-            (sup_ch[mi], new_id)
+            (chainage[li](merged[mi][1]), new_id)
             for new_id, mi in enumerate(order)
-            if supports_out[new_id].line == line
+            if line in supports_out[new_id].lines
         ]
         mid = 0.5 * (ch[0] + ch[1])
         before = [(c, i) for c, i in on_line if c <= mid]
@@ -1242,7 +1329,10 @@ def _placed(
         # ``support_radius``, else the wire was cut there) a curve is the next span's, and
         # so are its points there (on the road flight, span 3's road-side conductor held
         # 3.7 m of span 2's points past their pole, and span 2's wires up to 7 m of span 3's).
-        held_by = [(sid, supports_out[sid].position[:2], arms[sid]) for sid in bounds]
+        held_by = [
+            (sid, supports_out[sid].position[:2], leg_arms.get((sid, li), arms[sid]))
+            for sid in bounds
+        ]
         ends = _attachments(w, held_by)
         if ends:
             s_pts = w.plane_coords(pts_in_world[w.point_indices])[0]
@@ -1366,7 +1456,7 @@ def _chainages(
 
 SUPPORT_COLUMNS = (
     "support_id", "line", "kind", "x", "y", "ground_z", "top_z", "height_m", "top_from",
-    "turn_deg", "found_by", "wires",
+    "turn_deg", "found_by", "wires", "lines",
 )  # fmt: skip
 SPAN_COLUMNS = ("line", "span", "first_support", "last_support", "conductor")
 
@@ -1385,6 +1475,7 @@ def supports_csv(
                 + [f"{v:.3f}" for v in (x, y, z, d["top_z"], d["height_m"])]
                 + [d["top_from"] or "", f"{d['turn_deg']:.3f}", d["found_by"]]
                 + [" ".join(str(w) for w in d["wires"])]
+                + [" ".join(str(n) for n in d["lines"])]
             )
         )
     return "\n".join(rows) + "\n"

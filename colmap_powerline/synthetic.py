@@ -87,6 +87,9 @@ class Layout(StrEnum):
     # the flight's strips follow each leg (corridor or along4)
     CROSSING = "crossing"  # the span, and a single-circuit line on two poles crossing it
     # at crossing_deg, lower down; an area survey (grid) covers both
+    BRANCH = "branch"  # the crossing, its pole line going on for a 25 m span past its second
+    # pole, and a two-wire line leaving that pole (a junction) at branch_deg to it, 30 m to
+    # a pole of its own; an area survey (grid) covers all three
 
 
 # Side overlap of each flight pattern when SyntheticSpanOptions.side_overlap is None.
@@ -110,6 +113,7 @@ class SyntheticSpanOptions:
     layout: Layout = Layout.SPAN
     turn_deg: float = 25.0  # layout "angle": the line's turn at the angle tower
     crossing_deg: float = 70.0  # layout "crossing": the pole line's angle to the span
+    branch_deg: float = 75.0  # layout "branch": the branch line's angle to the pole line
     line_azimuth_deg: float = 35.0  # direction tower A → B, clockwise from north
     height_above_wires_m: float = 45.0  # flying height above the highest wire
     forward_overlap: float = 0.8
@@ -144,9 +148,13 @@ class SyntheticSpanOptions:
                 f"layout angle is flown along its legs: flight {self.flight.value!r} but "
                 "expected corridor or along4"
             )
-        if self.layout is Layout.CROSSING and self.flight is not FlightPattern.GRID:
+        if (
+            self.layout in (Layout.CROSSING, Layout.BRANCH)
+            and self.flight is not FlightPattern.GRID
+        ):
             raise InputError(
-                f"layout crossing is an area survey: flight {self.flight.value!r} but expected grid"
+                f"layout {self.layout.value} is an area survey: flight {self.flight.value!r} but "
+                "expected grid"
             )
         if not 1 <= self.num_spans <= 20:
             raise InputError(f"{self.num_spans=} but expected 1 ≤ num_spans ≤ 20")
@@ -158,6 +166,8 @@ class SyntheticSpanOptions:
             raise InputError(f"{self.turn_deg=} but expected 0 < turn_deg ≤ 60")
         if not 20.0 <= self.crossing_deg <= 90.0:
             raise InputError(f"{self.crossing_deg=} but expected 20 ≤ crossing_deg ≤ 90")
+        if not 20.0 <= self.branch_deg <= 160.0:
+            raise InputError(f"{self.branch_deg=} but expected 20 ≤ branch_deg ≤ 160")
         if self.side_overlap is not None and not 0.0 <= self.side_overlap < 1.0:
             raise InputError(f"{self.side_overlap=} but expected 0 ≤ side_overlap < 1")
 
@@ -405,18 +415,21 @@ def _lattice_tower(
     return members, points
 
 
-def _pole(base: F64, across: F64) -> tuple[list[Member], dict[tuple, tuple[float, float, float]]]:
+def _pole(
+    base: F64, across: F64, arm_z: float = 10.5, top: bool = True
+) -> tuple[list[Member], dict[tuple, tuple[float, float, float]]]:
     """A 12 m steel pole of a single-circuit line: two conductors on pin insulators at the
-    ends of a cross-arm (±1.2 m, 10.5 m up), the third on its top."""
+    ends of a cross-arm (±1.2 m, ``arm_z`` up), the third on its top (``top``)."""
 
     def world(c: float, z: float) -> tuple[float, float, float]:
         xy = base[:2] + c * across
         return (float(xy[0]), float(xy[1]), float(base[2] + z))
 
     members = [Member(world(0.0, 0.0), world(0.0, 12.0), 0.3)]
-    members.append(Member(world(-1.3, 10.5), world(1.3, 10.5), 0.12))
-    points = {("p", -1.0, 0): world(-1.2, 10.7), ("p", 1.0, 0): world(1.2, 10.7)}
-    points[("p", 0.0, 0)] = world(0.0, 12.2)
+    members.append(Member(world(-1.3, arm_z), world(1.3, arm_z), 0.12))
+    points = {("p", -1.0, 0): world(-1.2, arm_z + 0.2), ("p", 1.0, 0): world(1.2, arm_z + 0.2)}
+    if top:
+        points[("p", 0.0, 0)] = world(0.0, 12.2)
     return members, points
 
 
@@ -487,37 +500,84 @@ def _make_towers_and_wires(
                     span=k + 1,
                 )
             )
-    if opts.layout is Layout.CROSSING:
-        # A 70 m pole span crossing the first 15 m from its middle, 4-5 m below it.
+    if opts.layout in (Layout.CROSSING, Layout.BRANCH):
+        # A 70 m pole span crossing the first 15 m from its middle, 4-5 m below it; with a
+        # branch, the pole line goes on 25 m past its second pole, from which the branch
+        # line leaves.
         along_c, across_c = plan_axes(opts.line_azimuth_deg + opts.crossing_deg)
         crossing = 0.15 * opts.span_m * along
-        poles = []
-        for sign in (-1.0, 1.0):
-            xy = crossing + sign * 35.0 * along_c
+        offsets = (-35.0, 35.0, 60.0) if opts.layout is Layout.BRANCH else (-35.0, 35.0)
+        poles, pole_xy = [], []
+        for k, off in enumerate(offsets):
+            xy = crossing + off * along_c
             base = np.array([xy[0], xy[1], terrain.height(xy)[0]])
             members, points = _pole(base, across_c)
             towers.append(members)
             poles.append(points)
+            pole_xy.append(base)
+            junction = opts.layout is Layout.BRANCH and k == 1
             supports.append(
                 {
                     "line": 2,
-                    "kind": "pole",
+                    "kind": "junction" if junction else "pole",
                     "base": base.tolist(),
                     "top_z": max(p[2] for p in points.values()),
                 }  # fmt: skip
             )
         for key in poles[0]:
-            wires.append(
-                TrueWire(
-                    wire_id=len(wires),
-                    kind="conductor",
-                    attach_a=poles[0][key],
-                    attach_b=poles[1][key],
-                    catenary_a_m=float(rng.uniform(400, 600)),  # 1.0-1.5 m of sag
-                    diameter_m=0.022,
-                    line=2,
+            for k in range(len(poles) - 1):
+                wires.append(
+                    TrueWire(
+                        wire_id=len(wires),
+                        kind="conductor",
+                        attach_a=poles[k][key],
+                        attach_b=poles[k + 1][key],
+                        catenary_a_m=float(rng.uniform(400, 600)),  # 1.0-1.5 m of sag (70 m)
+                        diameter_m=0.022,
+                        line=2,
+                        span=k + 1,
+                    )
+                )
+        if opts.layout is Layout.BRANCH:
+            # Two conductors on a cross-arm of their own, a metre under the pole line's,
+            # to a pole 30 m away.
+            along_b, across_b = plan_axes(
+                opts.line_azimuth_deg + opts.crossing_deg + opts.branch_deg
+            )
+            base_j = pole_xy[1]
+            arm_z = 9.5
+            towers[-2].append(
+                Member(
+                    tuple(float(v) for v in np.r_[base_j[:2] - 1.3 * across_b, base_j[2] + arm_z]),
+                    tuple(float(v) for v in np.r_[base_j[:2] + 1.3 * across_b, base_j[2] + arm_z]),
+                    0.12,
                 )
             )
+            xy = base_j[:2] + 30.0 * along_b
+            base = np.array([xy[0], xy[1], terrain.height(xy)[0]])
+            members, points = _pole(base, across_b, arm_z=arm_z, top=False)
+            towers.append(members)
+            supports.append(
+                {
+                    "line": 3,
+                    "kind": "pole",
+                    "base": base.tolist(),
+                    "top_z": max(p[2] for p in points.values()),
+                }  # fmt: skip
+            )
+            for c in (-1.0, 1.0):
+                a_xy = base_j[:2] + 1.2 * c * across_b
+                wires.append(
+                    TrueWire(
+                        wire_id=len(wires),
+                        kind="conductor",
+                        attach_a=(float(a_xy[0]), float(a_xy[1]), float(base_j[2] + arm_z + 0.2)),
+                        attach_b=points[("p", c, 0)],
+                        catenary_a_m=float(rng.uniform(300, 450)),  # 0.25-0.4 m of sag
+                        diameter_m=0.022,
+                        line=3,
+                    )
+                )
     return towers, wires, supports
 
 

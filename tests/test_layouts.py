@@ -57,6 +57,28 @@ def test_crossing_layout_geometry():
         SyntheticSpanOptions(layout=Layout.CROSSING, flight="corridor")
 
 
+def test_branch_layout_geometry():
+    span = build_span(SyntheticSpanOptions(scale=0.05, layout="branch", flight="grid",
+                                           show_progress=False))  # fmt: skip
+    kinds = [s["kind"] for s in span.supports]
+    assert kinds == ["suspension"] * 2 + ["pole", "junction", "pole", "pole"]
+    line2 = [w for w in span.wires if w.line == 2]
+    line3 = [w for w in span.wires if w.line == 3]
+    assert len(line2) == 6 and {w.span for w in line2} == {1, 2} and len(line3) == 2
+    angle = np.degrees(np.arccos(abs(line2[0].direction_xy @ line3[0].direction_xy)))
+    assert angle == pytest.approx(75.0, abs=0.1)
+    # The branch hangs from the junction pole (a metre under the pole line's cross-arm) to a
+    # pole 30 m away, inside the survey: ten images or more see each of its ends.
+    junction = np.array(span.supports[3]["base"])
+    for w in line3:
+        assert np.hypot(*(np.array(w.attach_a[:2]) - junction[:2])) == pytest.approx(1.2)
+        assert w.attach_a[2] - junction[2] == pytest.approx(9.7)
+        for end in (w.attach_a, w.attach_b):
+            assert sum(bool(v.project(np.array([end]))[2][0]) for v in span.views) >= 10
+    with pytest.raises(ValueError, match="area survey"):
+        SyntheticSpanOptions(layout="branch", flight="corridor")
+
+
 def _run(tmp_path_factory, layout: str, flight: str, scale: float = 0.25):
     paths = generate_span(
         tmp_path_factory.mktemp(layout) / "span",
@@ -134,3 +156,19 @@ def test_an_area_survey_over_two_crossing_lines_finds_the_pole_line(crossing_run
     for t in poles:
         d = min(np.hypot(*(np.array(t["base"][:2]) - s.position[:2])) for s in result.line_supports)
         assert d < 1.0
+
+
+@pytest.mark.slow
+def test_a_line_leaving_a_pole_of_another_is_found_from_that_pole(tmp_path_factory):
+    """The crossing, its pole line going on 25 m past its second pole, and a two-wire line
+    leaving that pole at 75° to it, 30 m to its own pole (grid at 35°, half scale): the
+    branch's direction is not among the survey's, it is around the junction pole."""
+    result, ev, truth, supports = _run(tmp_path_factory, "branch", "grid", scale=0.5)
+    assert ev.ghost_wires == 0 and ev.outlier_share < 0.01
+    line3 = [w for w, t in zip(ev.wires, truth, strict=True) if t.line == 3]
+    assert all(w.completeness >= 0.8 for w in line3)
+    truth_junction = next(s for s in supports if s["kind"] == "junction")
+    found = [s for s in result.line_supports if s.kind == "junction"]
+    assert len(found) == 1 and len(found[0].lines) == 2
+    assert np.hypot(*(np.array(truth_junction["base"][:2]) - found[0].position[:2])) < 1.0
+    assert len({p.line for p in result.placement}) == 3

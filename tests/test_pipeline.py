@@ -77,8 +77,11 @@ def test_end_to_end_accuracy_and_completeness(run, medium_span):
     # of five more directions probed) reads 101 more: 449 reads, 14 per image. The sweep
     # for wires too faint for the detector reads each image that sees the line twice (its
     # coarse and fine passes) and tracing its hypotheses twice more: 541 reads, 17 per
-    # image. Sharing those reads with the run is the speed issue's work; this bounds it.
-    assert len(result.decoded) <= 18 * len(result.scene)
+    # image. Looking for lines that leave a support (each support's nearest 6 images read
+    # around it, 2 directions probed there with 4 pairs each) reads 102 more: 643 reads,
+    # 20 per image. Sharing those reads with the run is the speed issue's work; this
+    # bounds it.
+    assert len(result.decoded) <= 21 * len(result.scene)
 
 
 def test_outputs_follow_the_contract(run, medium_span):

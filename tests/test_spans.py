@@ -8,7 +8,14 @@ import numpy as np
 import pytest
 
 from colmap_powerline.pairs import WireCorridor
-from colmap_powerline.spans import LineSupport, SpanOptions, Spans, find_kink, find_spans
+from colmap_powerline.spans import (
+    LineSupport,
+    SpanOptions,
+    Spans,
+    find_kink,
+    find_spans,
+    supports_csv,
+)
 from colmap_powerline.wires import FittedWire, WiresOptions, refit, split_wires
 
 
@@ -373,6 +380,7 @@ def test_lines_spans_and_supports_are_written(tmp_path):
     rows = list(csv.DictReader((tmp_path / "supports.csv").open()))
     assert [r["kind"] for r in rows] == [s["kind"] for s in doc["supports"]]
     assert float(rows[1]["x"]) == pytest.approx(910.0, abs=0.5)
+    assert {r["lines"] for r in rows} == {"1"}
     table = list(csv.DictReader((tmp_path / "wires.csv").open()))
     assert {(r["line"], r["span"]) for r in table} == {("1", str(k)) for k in (1, 2, 3, 4)}
     assert len({r["conductor"] for r in table}) == len(PHASES)
@@ -636,3 +644,55 @@ def test_both_wires_give_up_a_stretch_the_views_disagree_on(monkeypatch):
     for w in work.wires:
         x_kept = pts[w.point_indices, 0]
         assert x_kept.max() < 16.0 and x_kept.min() < 1.0  # the stretch past 15 given up
+
+
+@pytest.mark.parametrize("unmeasured_m", [0.0, 11.0])
+def test_a_line_leaving_a_support_of_another_is_a_line_of_its_own(unmeasured_m):
+    # A straight line of four spans along +x; at its middle support (the origin) a branch
+    # line of two wires leaves at 70 deg to it and runs 60 m to a pole of its own. The main
+    # line's span past the junction may be measured only from ``unmeasured_m`` past it.
+    rng = np.random.default_rng(5)
+    pts, wires, legs, towers = _line(rng, 0.0, join_first_two=False)
+    legs = [0] * len(legs)
+    for k, w in enumerate(wires):
+        x = pts[w.point_indices, 0]
+        if x.min() > -1.0 and x.max() < 91.0 and unmeasured_m:
+            idx = w.point_indices[x > unmeasured_m]
+            wires[k] = _wire(pts, idx, np.array([1.0, 0.0]), w.wire_id)
+    t = np.deg2rad(70.0)
+    d = np.array([np.cos(t), np.sin(t)])
+    across = np.array([d[1], -d[0]])
+    end = 60.0 * d
+    for c in (-1.0, 1.0):
+        p = _span_points(np.r_[c * across, 28.0], np.r_[end + c * across, 27.0], 600.0, rng)
+        idx = np.arange(len(pts), len(pts) + len(p))
+        pts = np.r_[pts, p]
+        wires.append(_wire(pts, idx, d, len(wires)))
+        legs.append(1)
+    corridors = [_corridor(90.0), _corridor(20.0, centre=(10.0, 28.0))]
+    sp = find_spans(_views(220.0), _flat, wires, legs, corridors, pts)
+    junction = [s for s in sp.supports if s.kind == "junction"]
+    assert len(junction) == 1
+    j = junction[0]
+    # Placed where the line running through found it, carrying both lines.
+    assert np.hypot(*j.position[:2]) < 0.5
+    assert j.line == 1 and j.lines == (1, 2)
+    assert j.turn_deg == pytest.approx(70.0, abs=1.0)
+    main = [s for s in sp.supports if s.line == 1]
+    assert [s.kind for s in main] == ["end", "suspension", "junction", "suspension", "end"]
+    branch = [(w, p) for w, p in zip(sp.wires, sp.placement, strict=True) if p.line == 2]
+    assert len(branch) == 2
+    ends = [s for s in sp.supports if s.line == 2]
+    assert len(ends) == 1 and ends[0].kind == "end"
+    assert np.linalg.norm(ends[0].position[:2] - end) < 2.5
+    for w, p in branch:
+        assert p.span == 1 and set(p.supports) == {j.support_id, ends[0].support_id}
+        # Each branch wire reaches the junction pole's attachment (its end within a few cm
+        # of where it hangs, 1 m beside the pole across the branch).
+        near = w.points(np.array(w.s_range))[:, :2]
+        assert np.min(np.linalg.norm(near, axis=1)) == pytest.approx(1.0, abs=0.1)
+    row = next(r for r in supports_csv(sp.supports).splitlines()[1:] if ",junction," in r)
+    assert row.endswith(",1 2")
+    # The main line's spans are as without the branch: 4 spans x 4 conductors.
+    assert sum(p.line == 1 for p in sp.placement) == 16
+    assert sorted({p.span for p in sp.placement if p.line == 1}) == [1, 2, 3, 4]
