@@ -62,7 +62,7 @@ from .results import (
 )
 from .scene import Scene, SceneImage, load_scene, read_image, resolve_inputs
 from .sfm import run_sfm
-from .spans import LineSupport, Spans, find_spans
+from .spans import LineSupport, Spans, WireSpan, find_spans
 from .support import (
     WireSupport,
     height_above_ground,
@@ -827,7 +827,7 @@ def reconstruct(
         ground, source = dense_ground(open_ply(outputs.dense_path)), "dense cloud"
     measures = [measure_wire(w, ground, source, options.min_clearance_m) for w in wires]
     assign_kinds(measures, spans=[(p.line, p.span) for p in spans.placement])
-    line_supports = _tops_from(spans.supports, wires, measures)
+    line_supports = _tops_from(spans.supports, wires, measures, spans.placement)
     timings["clearance"] = time.perf_counter() - t0
     result = ReconstructionResult(
         scene,
@@ -2379,24 +2379,47 @@ def _confirm_grown(
 
 
 def _tops_from(
-    supports: Sequence[LineSupport], wires: Sequence[FittedWire], measures: Sequence[WireMeasures]
+    supports: Sequence[LineSupport],
+    wires: Sequence[FittedWire],
+    measures: Sequence[WireMeasures],
+    placement: Sequence[WireSpan],
 ) -> list[LineSupport]:
     """Each support with the kind of the wire its top is the attachment of. Where a line's
     shield wires were found at some of its supports but a support's top is a conductor's,
-    the shields were not found there and the structure stands higher than its top: said in
-    the log (shared multispan seed 3: the first tower 6.4 m lower than the truth)."""
+    the shields were not found there and the structure stands higher: its top is taken as
+    its highest conductor attachment plus the median height the line's shields stand above
+    the highest conductors at the supports where both were found (the towers of a line are
+    built alike), ``top_from`` ``line`` and said in the log (shared multispan seed 3: the
+    first tower 6.4 m lower than the truth from its conductors alone)."""
     kind = {w.wire_id: m.kind for w, m in zip(wires, measures, strict=True)}
     out = [dataclasses.replace(s, top_from=kind.get(s.top_wire, "")) for s in supports]
-    shielded = {s.line for s in out if s.top_from == "shield"}
+    conductor_z: dict[int, float] = {}  # each support's highest conductor attachment
+    for w, m, p in zip(wires, measures, placement, strict=True):
+        if m.kind != "conductor":
+            continue
+        for side, sid in enumerate(p.supports):
+            if sid is not None:
+                z = float(w.points(np.array([w.s_range[side]]))[0, 2])
+                conductor_z[sid] = max(conductor_z.get(sid, -np.inf), z)
+    above: dict[int, list[float]] = {}  # per line: its shields' height above its conductors
     for s in out:
-        if s.line in shielded and s.top_from == "conductor":
-            logger.warning(
-                "support %d (line %d): its highest attachment found is a conductor's — the "
-                "line's shield wires were not found at it, and it stands higher than its "
-                "reported top",
-                s.support_id,
-                s.line,
-            )
+        if s.top_from == "shield" and s.support_id in conductor_z:
+            above.setdefault(s.line, []).append(s.top_z - conductor_z[s.support_id])
+    for i, s in enumerate(out):
+        if s.top_from != "conductor" or s.line not in above:
+            continue
+        rise = float(np.median(above[s.line]))
+        top = conductor_z.get(s.support_id, s.top_z) + rise
+        out[i] = dataclasses.replace(s, top_z=top, top_from="line")
+        logger.warning(
+            "support %d (line %d): the line's shield wires were not found at it; its top "
+            "is put %.2f above its highest conductor, as the shields stand at the line's "
+            "%d other supports where both were found",
+            s.support_id,
+            s.line,
+            rise,
+            len(above[s.line]),
+        )
     return out
 
 

@@ -119,7 +119,7 @@ class LineSupport:
             through and another line leaves it, at ``turn_deg`` to it: ``lines``).
         position: (3,) its centre: in plan, midway across its wires on the line's axis; z
             the ground under it.
-        top_z: the height of its highest attachment (model frame).
+        top_z: the height of its highest attachment (model frame); see ``top_from``.
         turn_deg: the line's change of direction there.
         wire_ids: the wires attached to it.
         found_by: ``kink``, ``pieces meeting``, ``wires ending`` or (an angle support)
@@ -137,7 +137,8 @@ class LineSupport:
     reach_m: float = 0.0  # plan distance from its centre to its farthest attachment
     top_wire: int | None = None  # the wire of its highest attachment
     top_from: str = ""  # that wire's kind (``shield``/``conductor``, set once the kinds are
-    # known): a conductor where the line's shields were not found, the structure is higher
+    # known), or ``line``: the line's shields were not found here but at its other supports,
+    # and ``top_z`` is raised by the height they stand above the conductors there
     lines: tuple[int, ...] = ()  # every line it carries (a junction's: the line running
     # through first, then those that leave it; given empty: ``(line,)``)
 

@@ -386,26 +386,42 @@ def test_lines_spans_and_supports_are_written(tmp_path):
     assert len({r["conductor"] for r in table}) == len(PHASES)
 
 
-def test_a_support_topped_by_a_conductor_where_the_line_has_shields_is_said(caplog):
-    """A support's top is its highest attachment found: where the line's shields were found
-    at another support but not at this one, its top is a conductor's, it stands higher, and
-    the log says so (supports.csv: top_from)."""
+def test_a_support_topped_by_a_conductor_where_the_line_has_shields_stands_as_the_others(caplog):
+    """A support's top is its highest attachment found. Where the line's shields were found
+    at other supports but not at this one, its top is a conductor's and the structure stands
+    higher: its top is put as far above its highest conductor as the shields stand above
+    the conductors at the others (top_from ``line``), and the log says so. A line without
+    shields keeps its conductors' tops."""
     from types import SimpleNamespace
 
     from colmap_powerline.pipeline import _tops_from
+    from colmap_powerline.spans import WireSpan
 
-    def sup(i: int, top_wire: int) -> LineSupport:
-        return LineSupport(i, 1, "end", np.zeros(3), 40.0, 0.0, (0, 1), "wires ending",
+    def sup(i: int, top: float, top_wire: int, line: int = 1) -> LineSupport:
+        return LineSupport(i, line, "end", np.zeros(3), top, 0.0, (0, 1), "wires ending",
                            top_wire=top_wire)  # fmt: skip
 
-    wires = [SimpleNamespace(wire_id=i) for i in (0, 1)]
-    measures = [SimpleNamespace(kind="conductor"), SimpleNamespace(kind="shield")]
+    def wire(i: int, z0: float, z1: float) -> SimpleNamespace:
+        # its ends at s = 0 and 1 (its first and last support), heights z0 and z1
+        return SimpleNamespace(
+            wire_id=i, s_range=(0.0, 1.0),
+            points=lambda s: np.c_[s, 0 * s, z0 + (z1 - z0) * s],
+        )  # fmt: skip
+
+    wires = [wire(0, 38.0, 38.5), wire(1, 45.0, 45.5), wire(2, 38.5, 37.0), wire(3, 20.0, 21.0)]
+    kinds = ["conductor", "shield", "conductor", "conductor"]
+    measures = [SimpleNamespace(kind=k) for k in kinds]
+    placement = [WireSpan(1, 1, (0, 1), 0), WireSpan(1, 1, (0, 1), 1), WireSpan(1, 2, (1, 2), 0),
+                 WireSpan(2, 1, (3, None), 0)]  # fmt: skip
+    supports = [sup(0, 45.0, 1), sup(1, 45.5, 1), sup(2, 37.0, 2), sup(3, 20.0, 3, line=2)]
     with caplog.at_level("WARNING", logger="colmap_powerline.pipeline"):
-        out = _tops_from([sup(0, 1), sup(1, 0)], wires, measures)
-    assert [s.top_from for s in out] == ["shield", "conductor"]
-    assert [s.to_json()["top_from"] for s in out] == ["shield", "conductor"]
+        out = _tops_from(supports, wires, measures, placement)
+    assert [s.top_from for s in out] == ["shield", "shield", "line", "conductor"]
+    assert [s.to_json()["top_from"] for s in out] == ["shield", "shield", "line", "conductor"]
+    # the shields stand 7.0 above the conductors at supports 0 and 1
+    assert [s.top_z for s in out] == pytest.approx([45.0, 45.5, 44.0, 20.0])
     said = [r.getMessage() for r in caplog.records]
-    assert len(said) == 1 and said[0].startswith("support 1 (line 1)")
+    assert len(said) == 1 and said[0].startswith("support 2 (line 1)")
 
 
 def _drawn_views(tmp_path, truth: list[np.ndarray], places, rng) -> list:
