@@ -488,10 +488,18 @@ def _grey(view, greys: dict[Path, np.ndarray]) -> np.ndarray:
 
 
 def _ridge(grey: np.ndarray, uv: F64) -> tuple[float, float]:
+    """The thin line along the image curve ``uv`` (M, 2): its signed ridge response and the
+    robust σ of the background's (:func:`_ridge_beside`)."""
+    peak, sigma, _ = _ridge_beside(grey, uv)
+    return peak, sigma
+
+
+def _ridge_beside(grey: np.ndarray, uv: F64) -> tuple[float, float, float]:
     """The thin line along the image curve ``uv`` (M, 2): its signed ridge response
     (brighter or darker than beside it: the grey levels across the curve averaged along
     it, less their mean 2.5-3 px either side) at its strongest within 1.5 px of the curve,
-    and the robust σ of that response 5 px or more from it (the background's)."""
+    the robust σ of that response 5 px or more from it (the background's), and the grey
+    level beside it there (that mean)."""
     t = np.gradient(uv, axis=0)
     t /= np.linalg.norm(t, axis=1, keepdims=True)
     normal = np.c_[-t[:, 1], t[:, 0]]
@@ -505,22 +513,28 @@ def _ridge(grey: np.ndarray, uv: F64) -> tuple[float, float]:
     )
     g = samples.mean(axis=0)
     o = RIDGE_OFFSETS_PX
-    r = g - np.array([np.interp(o + d, o, g) for d in (-3.0, -2.5, 2.5, 3.0)]).mean(axis=0)
+    beside = np.array([np.interp(o + d, o, g) for d in (-3.0, -2.5, 2.5, 3.0)]).mean(axis=0)
+    r = g - beside
     inner = np.flatnonzero(np.abs(o) <= 1.5)
-    peak = float(r[inner[np.argmax(np.abs(r[inner]))]])
-    return peak, 1.4826 * float(np.median(np.abs(r[np.abs(o) >= 5.0]))) + 1e-6
+    at = inner[np.argmax(np.abs(r[inner]))]
+    sigma = 1.4826 * float(np.median(np.abs(r[np.abs(o) >= 5.0]))) + 1e-6
+    return float(r[at]), sigma, float(beside[at])
 
 
 def _continues(
     views: Sequence, wire: FittedWire, at_end: int, greys: dict[Path, np.ndarray]
-) -> tuple[int, int]:
+) -> tuple[int, int, int]:
     """How many views show ``wire`` going on past its end ``at_end`` (0: first, 1: last),
-    of how many could tell. Its curve is read CONTINUATION_M past the end, in two halves,
-    in the views that show it plainly along the same length before the end (those that can
-    tell): it goes on in a view where both halves hold a line of the same polarity and at
-    least half the contrast of the measured wire's (a tower's members cross there at all
-    angles and contrasts, a wire carries on as it was). ``greys``: the grey images read so
-    far (the wires ending at one place share their views: each is read once)."""
+    of how many could tell, and how many could not for the ground there. Its curve is read
+    CONTINUATION_M past the end, in two halves, in the views that show it plainly along
+    the same length before the end: it goes on in a view where both halves hold a line of
+    the same polarity and at least half the contrast of the measured wire's (a tower's
+    members cross there at all angles and contrasts, a wire carries on as it was). A wire
+    keeps its own grey level: where the ground beside a half is nearer that level than the
+    ground before the end by half the wire's contrast or more (a bright wire passing from a
+    dark verge over a bright field), the wire would not stand out there by the contrast
+    asked, and the view cannot tell. ``greys``: the grey images read so far (the wires
+    ending at one place share their views: each is read once)."""
     lo, hi = wire.s_range
     sign = -1.0 if at_end == 0 else 1.0
     end = lo if at_end == 0 else hi
@@ -531,10 +545,10 @@ def _continues(
         wire.points(end + sign * np.linspace(mid, far, 15)),
     ]
     before = wire.points(end - sign * np.linspace(near, far, 25))
-    shown = going = 0
+    shown = going = hidden = 0
     ranked = sorted(views, key=lambda v: np.linalg.norm(v.center_in_world[:2] - halves[0][0, :2]))
     for v in ranked:
-        if shown >= MAX_CONTINUATION_VIEWS:
+        if shown + hidden >= MAX_CONTINUATION_VIEWS:
             break
         projected = [v.project(p) for p in (before, *halves)]
         if not all(ok.all() for _, _, ok in projected):
@@ -543,15 +557,91 @@ def _continues(
         if min(np.ptp(q[:, 0]) + np.ptp(q[:, 1]) for q in uv) < 10:  # too short to read
             continue
         grey = _grey(v, greys)
-        ref, sigma = _ridge(grey, uv[0])
+        ref, sigma, level = _ridge_beside(grey, uv[0])
         if abs(ref) < RIDGE_SIGMAS * sigma:
             continue  # the measured wire itself is not plain here
+        reads = [_ridge_beside(grey, q) for q in uv[1:]]
+        if any((lv - level) * np.sign(ref) >= 0.5 * abs(ref) for _, _, lv in reads):
+            hidden += 1
+            continue
         shown += 1
         going += all(
             np.sign(peak) == np.sign(ref) and abs(peak) >= max(0.5 * abs(ref), RIDGE_SIGMAS * sg)
-            for peak, sg in (_ridge(grey, q) for q in uv[1:])
+            for peak, sg, _ in reads
         )
-    return going, shown
+    return going, shown, hidden
+
+
+# Where a wire's line evidence stops: its curve read in pieces of EVIDENCE_PIECE_M every
+# EVIDENCE_STEP_M from EVIDENCE_SCAN_M before its measured end to as far past it.
+EVIDENCE_SCAN_M = 5.0
+EVIDENCE_STEP_M = 0.25
+EVIDENCE_PIECE_M = 1.0
+# A view's pieces must agree this well with one split into held and not held.
+MIN_EVIDENCE_AGREEMENT = 0.75
+# Views lose a wire short of its end (the tower's lattice behind it, its insulator's
+# hardware, a change of ground), but no view shows it past its end: the line ends where
+# the views that see it farthest say, their upper quartile (not their extreme: a tower
+# member along a wire's curve carries one view on).
+EVIDENCE_QUANTILE = 0.75
+
+
+def _evidence_stops(
+    views: Sequence, wire: FittedWire, at_end: int, greys: dict[Path, np.ndarray]
+) -> list[float]:
+    """Where ``wire``'s line evidence stops near its end ``at_end`` (0: first, 1: last), in
+    each view that shows it plainly before its end (:func:`_continues`' views): the
+    distance along its plane past the measured end (negative: short of it). Its catenary
+    is read piece by piece from EVIDENCE_SCAN_M before the end outwards; a piece holds the
+    wire where its ridge has the polarity and at least half the contrast of the wire's
+    before the end. The wire ends within the first piece of the split of the pieces into held
+    (before) and not held (after) that most of them agree with, in its first half (where
+    it covers less than half of that piece). A view whose pieces agree with no split
+    (MIN_EVIDENCE_AGREEMENT), or whose evidence stops within the first metre read, is not
+    counted."""
+    lo, hi = wire.s_range
+    sign = -1.0 if at_end == 0 else 1.0
+    end = lo if at_end == 0 else hi
+    near, far = CONTINUATION_M
+    before = wire.points(end - sign * np.linspace(near, far, 25))
+    starts = np.arange(-EVIDENCE_SCAN_M, EVIDENCE_SCAN_M + 1e-9, EVIDENCE_STEP_M)
+    pieces = [wire.points(end + sign * np.linspace(d, d + EVIDENCE_PIECE_M, 12)) for d in starts]
+    stops: list[float] = []
+    ranked = sorted(views, key=lambda v: np.linalg.norm(v.center_in_world[:2] - before[0, :2]))
+    shown = 0
+    for v in ranked:
+        if shown >= MAX_CONTINUATION_VIEWS:
+            break
+        uv, _, ok = v.project(before)
+        if not ok.all() or np.ptp(uv[:, 0]) + np.ptp(uv[:, 1]) < 10:
+            continue
+        grey = _grey(v, greys)
+        ref, sigma = _ridge(grey, uv)
+        if abs(ref) < RIDGE_SIGMAS * sigma:
+            continue
+        shown += 1
+        held = []
+        for piece in pieces:
+            q, _, okq = v.project(piece)
+            if not okq.all():
+                break
+            peak, sg = _ridge(grey, q)
+            strong = abs(peak) >= max(0.5 * abs(ref), RIDGE_SIGMAS * sg)
+            held.append(bool(np.sign(peak) == np.sign(ref) and strong))
+        if len(held) < 8:
+            continue
+        # The split of the pieces into held before and not held after that most of them
+        # agree with (a stray miss before the end or a stray hit past it does not move it).
+        signed = np.where(held, 1, -1)
+        agree = np.cumsum(signed)[:-1] - (np.cumsum(signed[::-1])[::-1][1:])
+        best = np.flatnonzero(agree == agree.max())
+        k = 1 + int(best[len(best) // 2])
+        if (agree.max() + len(held)) / (2 * len(held)) < MIN_EVIDENCE_AGREEMENT:
+            continue
+        if starts[k] < -EVIDENCE_SCAN_M + 1.0:
+            continue
+        stops.append(float(starts[k] + 0.5 * (EVIDENCE_PIECE_M - EVIDENCE_STEP_M)))
+    return stops
 
 
 # Two wires' image curves at least this far apart (px) are told apart by their ridges (each
@@ -1042,7 +1132,18 @@ def _line_ends(
                     first = float(np.mean(leg.ends_u(w))) > u_end
                     which = 0 if first == _s_grows_along(w, leg) else 1
                     reads.append(_continues(views, w, which, greys))
-                going, shown = np.sum(reads, axis=0)
+                going, shown, hidden = np.sum(reads, axis=0)
+                if hidden and hidden >= shown:
+                    logger.info(
+                        "spans: %d wires end together at %.1f along the line, but in %d of "
+                        "the %d views that show them before their ends the ground past them "
+                        "would hide them: no support placed (the line may go on unseen)",
+                        len(g),
+                        u_end,
+                        hidden,
+                        hidden + shown,
+                    )
+                    continue
                 if not measurable and (shown < 2 or going > 0):
                     continue
                 # The line goes on, or it ends: all its wires alike (the views' reads of
@@ -1055,9 +1156,25 @@ def _line_ends(
                         u_end,
                     )
                     continue
-                # Placed where the wires' measurements end, their median: some stop short at
-                # the insulators' hardware, some are carried a little past.
+                # Placed where the wires' line evidence ends in the views (the measurements
+                # stop short at the insulators' hardware or are carried on along the tower's
+                # members): the upper quartile of its stops outwards (EVIDENCE_QUANTILE);
+                # without three, where the measurements end (their median).
                 u_at = float(np.median(ends[g, side]))
+                at_u = []
+                for i in g:
+                    w = out[idx[i]]
+                    first = float(np.mean(leg.ends_u(w))) > u_end
+                    which = 0 if first == _s_grows_along(w, leg) else 1
+                    s_end = w.s_range[which]
+                    out_s = -1.0 if which == 0 else 1.0
+                    at_u += [
+                        float(leg.u(w.points(np.array([s_end + out_s * d]))[:, :2])[0])
+                        for d in _evidence_stops(views, w, which, greys)
+                    ]
+                far_q = EVIDENCE_QUANTILE if sign > 0 else 1.0 - EVIDENCE_QUANTILE
+                if len(at_u) >= MIN_VIEWS_BEYOND:
+                    u_at = float(np.quantile(at_u, far_q))
                 ends_found.append((li, u_at, "wires ending", {out[idx[i]].wire_id for i in g}))
     return ends_found
 

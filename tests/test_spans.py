@@ -576,11 +576,11 @@ def _terminal_curves(far: dict[float, float]) -> list[np.ndarray]:
     return out
 
 
-def _terminal_spans(views, rng) -> Spans:
-    """The supports the spans stage finds for the three conductors, measured to 2 m short
-    of each tower, seen by ``views``."""
+def _terminal_spans(views, rng, short_m: float = 2.0) -> Spans:
+    """The supports the spans stage finds for the three conductors, measured to ``short_m``
+    short of each tower (negative: carried past it), seen by ``views``."""
     ends = [(np.array([-60.0, y, 30.0]), np.array([60.0, y, 30.0])) for y in _TERMINAL_YS]
-    pts = [_span_points(a, b, _TERMINAL_A, rng) for a, b in ends]
+    pts = [_span_points(a, b, _TERMINAL_A, rng, keep=(2.0, short_m)) for a, b in ends]
     n = np.cumsum([0] + [len(p) for p in pts])
     pts = np.concatenate(pts)
     wires = [_wire(pts, np.arange(n[k], n[k + 1]), np.array([1.0, 0.0]), k) for k in range(3)]
@@ -603,6 +603,42 @@ def test_a_line_s_end_seen_past_by_two_views_only(tmp_path, goes_on):
     else:
         assert [s.kind for s in sp.supports] == ["end"]
         assert abs(sp.supports[0].position[0] - 59.0) < 1.5
+
+
+@pytest.mark.parametrize("short_m", [2.0, -2.5])
+def test_a_line_s_end_is_placed_where_its_wires_line_evidence_stops(tmp_path, short_m):
+    # The wires' measurements stop 2 m short of the terminal tower (its insulators'
+    # hardware), or run 2.5 m past it (carried on its members: the shared mixed seed 3,
+    # 1.8 m). The images show the wires up to the tower at x = 60: the end support is
+    # placed there, not where the measurements end.
+    rng = np.random.default_rng(11)
+    places = [(56.0, -8.0), (56.0, 8.0), (62.0, 0.0)]
+    views = _drawn_views(tmp_path, _terminal_curves({}), places, rng)
+    sp = _terminal_spans(views, rng, short_m)
+    assert [s.kind for s in sp.supports] == ["end"]
+    assert abs(sp.supports[0].position[0] - 60.0) < 0.5
+
+
+def test_wires_lost_over_ground_as_bright_as_they_are_do_not_end_the_line(tmp_path):
+    # The road flight: the line across the field is bright over the dark verge and lost
+    # over the bright field; no pole stands where its measurements end. The wires go on
+    # past x = 60, where the ground turns as bright as they are: the views cannot tell,
+    # and no end support is made up there.
+    import cv2
+
+    rng = np.random.default_rng(11)
+    places = [(56.0, -8.0), (56.0, 8.0), (62.0, 0.0)]
+    views = _drawn_views(
+        tmp_path, _terminal_curves(dict.fromkeys(_TERMINAL_YS, 100.0)), places, rng
+    )
+    for v in views:
+        im = cv2.imread(str(v.path), cv2.IMREAD_GRAYSCALE).astype(np.float32)
+        u_end = v.project(np.array([[60.0, 0.0, 30.0]]))[0][0, 0]
+        field = im[:, int(u_end) :]
+        im[:, int(u_end) :] = 188.0 + rng.normal(0.0, 6.0, field.shape)  # the wires' level
+        cv2.imwrite(str(v.path), np.clip(im, 0, 255).astype(np.uint8))
+    sp = _terminal_spans(views, rng, short_m=0.0)
+    assert sp.supports == []
 
 
 def test_a_line_ends_where_the_views_of_all_its_wires_together_say_so(tmp_path):
