@@ -488,18 +488,10 @@ def _grey(view, greys: dict[Path, np.ndarray]) -> np.ndarray:
 
 
 def _ridge(grey: np.ndarray, uv: F64) -> tuple[float, float]:
-    """The thin line along the image curve ``uv`` (M, 2): its signed ridge response and the
-    robust σ of the background's (:func:`_ridge_beside`)."""
-    peak, sigma, _ = _ridge_beside(grey, uv)
-    return peak, sigma
-
-
-def _ridge_beside(grey: np.ndarray, uv: F64) -> tuple[float, float, float]:
     """The thin line along the image curve ``uv`` (M, 2): its signed ridge response
     (brighter or darker than beside it: the grey levels across the curve averaged along
     it, less their mean 2.5-3 px either side) at its strongest within 1.5 px of the curve,
-    the robust σ of that response 5 px or more from it (the background's), and the grey
-    level beside it there (that mean)."""
+    and the robust σ of that response 5 px or more from it (the background's)."""
     t = np.gradient(uv, axis=0)
     t /= np.linalg.norm(t, axis=1, keepdims=True)
     normal = np.c_[-t[:, 1], t[:, 0]]
@@ -513,28 +505,22 @@ def _ridge_beside(grey: np.ndarray, uv: F64) -> tuple[float, float, float]:
     )
     g = samples.mean(axis=0)
     o = RIDGE_OFFSETS_PX
-    beside = np.array([np.interp(o + d, o, g) for d in (-3.0, -2.5, 2.5, 3.0)]).mean(axis=0)
-    r = g - beside
+    r = g - np.array([np.interp(o + d, o, g) for d in (-3.0, -2.5, 2.5, 3.0)]).mean(axis=0)
     inner = np.flatnonzero(np.abs(o) <= 1.5)
-    at = inner[np.argmax(np.abs(r[inner]))]
-    sigma = 1.4826 * float(np.median(np.abs(r[np.abs(o) >= 5.0]))) + 1e-6
-    return float(r[at]), sigma, float(beside[at])
+    peak = float(r[inner[np.argmax(np.abs(r[inner]))]])
+    return peak, 1.4826 * float(np.median(np.abs(r[np.abs(o) >= 5.0]))) + 1e-6
 
 
 def _continues(
     views: Sequence, wire: FittedWire, at_end: int, greys: dict[Path, np.ndarray]
-) -> tuple[int, int, int]:
+) -> tuple[int, int]:
     """How many views show ``wire`` going on past its end ``at_end`` (0: first, 1: last),
-    of how many could tell, and how many could not for the ground there. Its curve is read
-    CONTINUATION_M past the end, in two halves, in the views that show it plainly along
-    the same length before the end: it goes on in a view where both halves hold a line of
-    the same polarity and at least half the contrast of the measured wire's (a tower's
-    members cross there at all angles and contrasts, a wire carries on as it was). A wire
-    keeps its own grey level: where the ground beside a half is nearer that level than the
-    ground before the end by half the wire's contrast or more (a bright wire passing from a
-    dark verge over a bright field), the wire would not stand out there by the contrast
-    asked, and the view cannot tell. ``greys``: the grey images read so far (the wires
-    ending at one place share their views: each is read once)."""
+    of how many could tell. Its curve is read CONTINUATION_M past the end, in two halves,
+    in the views that show it plainly along the same length before the end (those that can
+    tell): it goes on in a view where both halves hold a line of the same polarity and at
+    least half the contrast of the measured wire's (a tower's members cross there at all
+    angles and contrasts, a wire carries on as it was). ``greys``: the grey images read so
+    far (the wires ending at one place share their views: each is read once)."""
     lo, hi = wire.s_range
     sign = -1.0 if at_end == 0 else 1.0
     end = lo if at_end == 0 else hi
@@ -545,10 +531,10 @@ def _continues(
         wire.points(end + sign * np.linspace(mid, far, 15)),
     ]
     before = wire.points(end - sign * np.linspace(near, far, 25))
-    shown = going = hidden = 0
+    shown = going = 0
     ranked = sorted(views, key=lambda v: np.linalg.norm(v.center_in_world[:2] - halves[0][0, :2]))
     for v in ranked:
-        if shown + hidden >= MAX_CONTINUATION_VIEWS:
+        if shown >= MAX_CONTINUATION_VIEWS:
             break
         projected = [v.project(p) for p in (before, *halves)]
         if not all(ok.all() for _, _, ok in projected):
@@ -557,19 +543,15 @@ def _continues(
         if min(np.ptp(q[:, 0]) + np.ptp(q[:, 1]) for q in uv) < 10:  # too short to read
             continue
         grey = _grey(v, greys)
-        ref, sigma, level = _ridge_beside(grey, uv[0])
+        ref, sigma = _ridge(grey, uv[0])
         if abs(ref) < RIDGE_SIGMAS * sigma:
             continue  # the measured wire itself is not plain here
-        reads = [_ridge_beside(grey, q) for q in uv[1:]]
-        if any((lv - level) * np.sign(ref) >= 0.5 * abs(ref) for _, _, lv in reads):
-            hidden += 1
-            continue
         shown += 1
         going += all(
             np.sign(peak) == np.sign(ref) and abs(peak) >= max(0.5 * abs(ref), RIDGE_SIGMAS * sg)
-            for peak, sg, _ in reads
+            for peak, sg in (_ridge(grey, q) for q in uv[1:])
         )
-    return going, shown, hidden
+    return going, shown
 
 
 # Where a wire's line evidence stops: its curve read in pieces of EVIDENCE_PIECE_M every
@@ -1132,18 +1114,7 @@ def _line_ends(
                     first = float(np.mean(leg.ends_u(w))) > u_end
                     which = 0 if first == _s_grows_along(w, leg) else 1
                     reads.append(_continues(views, w, which, greys))
-                going, shown, hidden = np.sum(reads, axis=0)
-                if hidden and hidden >= shown:
-                    logger.info(
-                        "spans: %d wires end together at %.1f along the line, but in %d of "
-                        "the %d views that show them before their ends the ground past them "
-                        "would hide them: no support placed (the line may go on unseen)",
-                        len(g),
-                        u_end,
-                        hidden,
-                        hidden + shown,
-                    )
-                    continue
+                going, shown = np.sum(reads, axis=0)
                 if not measurable and (shown < 2 or going > 0):
                     continue
                 # The line goes on, or it ends: all its wires alike (the views' reads of
