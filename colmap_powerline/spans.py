@@ -39,10 +39,10 @@ from __future__ import annotations
 import dataclasses
 import itertools
 import logging
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import ClassVar
+from typing import Any, ClassVar
 
 import cv2
 import numpy as np
@@ -511,6 +511,44 @@ def _ridge(grey: np.ndarray, uv: F64) -> tuple[float, float]:
     return peak, 1.4826 * float(np.median(np.abs(r[np.abs(o) >= 5.0]))) + 1e-6
 
 
+def _plain_before(
+    views: Sequence,
+    before: F64,
+    curves: Sequence[F64],
+    near: F64,
+    greys: dict[Path, np.ndarray],
+) -> Iterator[tuple[Any, np.ndarray, float, list[F64]]]:
+    """The views, nearest ``near`` first and at most MAX_CONTINUATION_VIEWS of them, that
+    show a wire plainly along ``before`` (a stretch of it before its end: its ridge at
+    least RIDGE_SIGMAS σ of the background's) and see each of ``curves`` whole: each
+    view, its grey image, that ridge and the curves in its pixels."""
+    shown = 0
+    for v in sorted(views, key=lambda v: np.linalg.norm(v.center_in_world[:2] - near[:2])):
+        if shown >= MAX_CONTINUATION_VIEWS:
+            return
+        projected = [v.project(p) for p in (before, *curves)]
+        if not all(ok.all() for _, _, ok in projected):
+            continue
+        uv = [q for q, _, _ in projected]
+        if min(np.ptp(q[:, 0]) + np.ptp(q[:, 1]) for q in uv) < 10:  # too short to read
+            continue
+        grey = _grey(v, greys)
+        ref, sigma = _ridge(grey, uv[0])
+        if abs(ref) < RIDGE_SIGMAS * sigma:
+            continue  # the measured wire itself is not plain here
+        shown += 1
+        yield v, grey, ref, uv[1:]
+
+
+def _holds(grey: np.ndarray, uv: F64, ref: float) -> bool:
+    """Whether the image curve ``uv`` holds a line like the measured wire's (ridge ``ref``):
+    of its polarity and at least half its contrast (and RIDGE_SIGMAS σ of the background's)."""
+    peak, sigma = _ridge(grey, uv)
+    return bool(
+        np.sign(peak) == np.sign(ref) and abs(peak) >= max(0.5 * abs(ref), RIDGE_SIGMAS * sigma)
+    )
+
+
 def _continues(
     views: Sequence, wire: FittedWire, at_end: int, greys: dict[Path, np.ndarray]
 ) -> tuple[int, int]:
@@ -532,25 +570,9 @@ def _continues(
     ]
     before = wire.points(end - sign * np.linspace(near, far, 25))
     shown = going = 0
-    ranked = sorted(views, key=lambda v: np.linalg.norm(v.center_in_world[:2] - halves[0][0, :2]))
-    for v in ranked:
-        if shown >= MAX_CONTINUATION_VIEWS:
-            break
-        projected = [v.project(p) for p in (before, *halves)]
-        if not all(ok.all() for _, _, ok in projected):
-            continue
-        uv = [q for q, _, _ in projected]
-        if min(np.ptp(q[:, 0]) + np.ptp(q[:, 1]) for q in uv) < 10:  # too short to read
-            continue
-        grey = _grey(v, greys)
-        ref, sigma = _ridge(grey, uv[0])
-        if abs(ref) < RIDGE_SIGMAS * sigma:
-            continue  # the measured wire itself is not plain here
+    for _, grey, ref, uv in _plain_before(views, before, halves, halves[0][0], greys):
         shown += 1
-        going += all(
-            np.sign(peak) == np.sign(ref) and abs(peak) >= max(0.5 * abs(ref), RIDGE_SIGMAS * sg)
-            for peak, sg in (_ridge(grey, q) for q in uv[1:])
-        )
+        going += all(_holds(grey, q, ref) for q in uv)
     return going, shown
 
 
@@ -572,13 +594,12 @@ def _evidence_stops(
     views: Sequence, wire: FittedWire, at_end: int, greys: dict[Path, np.ndarray]
 ) -> list[float]:
     """Where ``wire``'s line evidence stops near its end ``at_end`` (0: first, 1: last), in
-    each view that shows it plainly before its end (:func:`_continues`' views): the
-    distance along its plane past the measured end (negative: short of it). Its catenary
-    is read piece by piece from EVIDENCE_SCAN_M before the end outwards; a piece holds the
-    wire where its ridge has the polarity and at least half the contrast of the wire's
-    before the end. The wire ends within the first piece of the split of the pieces into held
-    (before) and not held (after) that most of them agree with, in its first half (where
-    it covers less than half of that piece). A view whose pieces agree with no split
+    each view that shows it plainly before its end (:func:`_plain_before`): the distance
+    along its plane past the measured end (negative: short of it). Its catenary is read
+    piece by piece from EVIDENCE_SCAN_M before the end outwards; a piece holds the wire as
+    :func:`_holds` says. The wire ends within the first piece of the split of the pieces
+    into held (before) and not held (after) that most of them agree with, in its first half
+    (where it covers less than half of that piece). A view whose pieces agree with no split
     (MIN_EVIDENCE_AGREEMENT), or whose evidence stops within the first metre read, is not
     counted."""
     lo, hi = wire.s_range
@@ -589,27 +610,13 @@ def _evidence_stops(
     starts = np.arange(-EVIDENCE_SCAN_M, EVIDENCE_SCAN_M + 1e-9, EVIDENCE_STEP_M)
     pieces = [wire.points(end + sign * np.linspace(d, d + EVIDENCE_PIECE_M, 12)) for d in starts]
     stops: list[float] = []
-    ranked = sorted(views, key=lambda v: np.linalg.norm(v.center_in_world[:2] - before[0, :2]))
-    shown = 0
-    for v in ranked:
-        if shown >= MAX_CONTINUATION_VIEWS:
-            break
-        uv, _, ok = v.project(before)
-        if not ok.all() or np.ptp(uv[:, 0]) + np.ptp(uv[:, 1]) < 10:
-            continue
-        grey = _grey(v, greys)
-        ref, sigma = _ridge(grey, uv)
-        if abs(ref) < RIDGE_SIGMAS * sigma:
-            continue
-        shown += 1
+    for v, grey, ref, _ in _plain_before(views, before, (), before[0], greys):
         held = []
-        for piece in pieces:
-            q, _, okq = v.project(piece)
-            if not okq.all():
+        for piece in pieces:  # read outwards until a piece leaves the image
+            q, _, ok = v.project(piece)
+            if not ok.all():
                 break
-            peak, sg = _ridge(grey, q)
-            strong = abs(peak) >= max(0.5 * abs(ref), RIDGE_SIGMAS * sg)
-            held.append(bool(np.sign(peak) == np.sign(ref) and strong))
+            held.append(_holds(grey, q, ref))
         if len(held) < 8:
             continue
         # The split of the pieces into held before and not held after that most of them
@@ -1106,14 +1113,17 @@ def _line_ends(
                 # stopped short of a support, they do). Where the views could not measure
                 # there, two or more must show the wires plainly before their ends and none
                 # going on.
+                # Which end (0: first, 1: last) of each wire lies at the place.
+                at_end = {
+                    i: 0
+                    if (float(np.mean(leg.ends_u(out[idx[i]]))) > u_end)
+                    == _s_grows_along(out[idx[i]], leg)
+                    else 1
+                    for i in g
+                }
                 longest = sorted(g, key=lambda i: -np.ptp(ends[i]))[:3]
-                reads = []
                 greys: dict[Path, np.ndarray] = {}
-                for i in longest:
-                    w = out[idx[i]]
-                    first = float(np.mean(leg.ends_u(w))) > u_end
-                    which = 0 if first == _s_grows_along(w, leg) else 1
-                    reads.append(_continues(views, w, which, greys))
+                reads = [_continues(views, out[idx[i]], at_end[i], greys) for i in longest]
                 going, shown = np.sum(reads, axis=0)
                 if not measurable and (shown < 2 or going > 0):
                     continue
@@ -1131,21 +1141,18 @@ def _line_ends(
                 # stop short at the insulators' hardware or are carried on along the tower's
                 # members): the upper quartile of its stops outwards (EVIDENCE_QUANTILE);
                 # without three, where the measurements end (their median).
-                u_at = float(np.median(ends[g, side]))
                 at_u = []
                 for i in g:
-                    w = out[idx[i]]
-                    first = float(np.mean(leg.ends_u(w))) > u_end
-                    which = 0 if first == _s_grows_along(w, leg) else 1
-                    s_end = w.s_range[which]
-                    out_s = -1.0 if which == 0 else 1.0
-                    at_u += [
-                        float(leg.u(w.points(np.array([s_end + out_s * d]))[:, :2])[0])
-                        for d in _evidence_stops(views, w, which, greys)
-                    ]
-                far_q = EVIDENCE_QUANTILE if sign > 0 else 1.0 - EVIDENCE_QUANTILE
+                    w, which = out[idx[i]], at_end[i]
+                    s_past = w.s_range[which] + (-1.0 if which == 0 else 1.0) * np.array(
+                        _evidence_stops(views, w, which, greys)
+                    )
+                    at_u += leg.u(w.points(s_past)[:, :2]).tolist()
                 if len(at_u) >= MIN_VIEWS_BEYOND:
+                    far_q = EVIDENCE_QUANTILE if sign > 0 else 1.0 - EVIDENCE_QUANTILE
                     u_at = float(np.quantile(at_u, far_q))
+                else:
+                    u_at = float(np.median(ends[g, side]))
                 ends_found.append((li, u_at, "wires ending", {out[idx[i]].wire_id for i in g}))
     return ends_found
 
