@@ -497,8 +497,12 @@ MAX_SPLIT_SAMPLES = 4000
 def _support_places(pts: F64, idx: I64, along: F64, options: WiresOptions) -> list[float]:
     """Where supports hold the chain ``idx`` (along ``along``): places where two parabolas
     in height, each over ``SUPPORT_WINDOW_LENGTHS`` × ``min_length`` of the chain on its
-    side, fit far better than one (``SUPPORT_MAX_RSS_SHARE``) and meet bending down
-    (``SUPPORT_MIN_BEND_DEG``); the best such place within a window of another wins.
+    side, fit far better than one on the points they hold (``SUPPORT_MAX_RSS_SHARE``:
+    :func:`_held_parabola`) and meet bending down (``SUPPORT_MIN_BEND_DEG``); of such
+    places within a window of one another, the best fit wins. The two curves must cross
+    within ``min_length`` of the place tried, and the support lies where they cross (the
+    place tried may lie a few metres off it: each side's curve leaves out the other span's
+    few metres as it would false pairings).
 
     A straight line's conductors run on from span to span: the voxel chains join a span's
     wire to the next one's at their support, and one curve then holds none of them."""
@@ -520,14 +524,26 @@ def _support_places(pts: F64, idx: I64, along: F64, options: WiresOptions) -> li
         k = mid - lo
         if x[k - 1] - x[0] < options.min_length or x[-1] - x[k] < options.min_length:
             continue
-        pl, rl = np.polyfit(x[:k], z[:k], 2, full=True)[:2]
-        pr, rr = np.polyfit(x[k:], z[k:], 2, full=True)[:2]
-        one = np.polyfit(x, z, 2, full=True)[1]
-        both = float(rl[0] if len(rl) else 0.0) + float(rr[0] if len(rr) else 0.0)
-        share = both / float(one[0]) if len(one) and one[0] > 0 else 1.0
+        # Compared on the points the two curves hold: a chain also carries false pairings
+        # decimetres off the wire (layers), whose squares would outweigh the wire's own.
+        pl, rl, kl = _held_parabola(x[:k], z[:k], options.inlier_distance)
+        pr, rr, kr = _held_parabola(x[k:], z[k:], options.inlier_distance)
+        both = float(rl @ rl + rr @ rr)
+        xi, zi = np.r_[x[:k][kl], x[k:][kr]], np.r_[z[:k][kl], z[k:][kr]]
+        one = float(np.sum((zi - np.polyval(np.polyfit(xi, zi, 2), xi)) ** 2))
+        share = both / one if one > 0 else 1.0
         bend = np.degrees(np.arctan(pl[1]) - np.arctan(pr[1]))  # slopes at b (x = 0)
-        if share <= SUPPORT_MAX_RSS_SHARE and bend >= SUPPORT_MIN_BEND_DEG:
-            found.append((share, float(b)))
+        # The spans' curves meet at their support (a side may hold a false pairing's
+        # layer instead of the wire: its curve then runs beside the other, not into it).
+        meet = _where_curves_meet(pl, pr, options.min_length)
+        held = min(kl.mean(), kr.mean()) >= 0.5  # each curve the wire of its side
+        if (
+            held
+            and share <= SUPPORT_MAX_RSS_SHARE
+            and bend >= SUPPORT_MIN_BEND_DEG
+            and meet is not None
+        ):
+            found.append((share, float(b + meet)))
     cuts: list[float] = []
     for _, b in sorted(found):
         if all(abs(b - c) >= window for c in cuts):
@@ -535,15 +551,45 @@ def _support_places(pts: F64, idx: I64, along: F64, options: WiresOptions) -> li
     return sorted(cuts)
 
 
+def _where_curves_meet(left: F64, right: F64, reach: float) -> float | None:
+    """Where two parabolas in x cross: the crossing nearest x = 0 within ``reach``, or None
+    when they do not cross there."""
+    roots = np.roots(np.polysub(left, right))
+    real = roots[np.isreal(roots)].real
+    real = real[np.abs(real) <= reach]
+    return float(real[np.argmin(np.abs(real))]) if len(real) else None
+
+
+def _held_parabola(x: F64, z: F64, tol: float) -> tuple[F64, F64, npt.NDArray[np.bool_]]:
+    """The parabola z(x) of the densest layer of points: least squares, then again on the
+    points within max(``tol``, 2.5 × their median residual) of it, until that is ``tol``
+    or the points kept stop changing. Returns (coefficients, residuals of the points kept,
+    which points are kept)."""
+    keep = np.ones(len(x), bool)
+    p = np.polyfit(x, z, 2)
+    for _ in range(HELD_PARABOLA_ROUNDS):
+        res = np.abs(z - np.polyval(p, x))
+        new = res < max(tol, 2.5 * float(np.median(res[keep])))
+        if new.sum() < 3 or np.array_equal(new, keep):
+            break
+        keep = new
+        p = np.polyfit(x[keep], z[keep], 2)
+    return p, z[keep] - np.polyval(p, x[keep]), keep
+
+
+HELD_PARABOLA_ROUNDS = 5
+
+
 def _supports_of_line(places: list[float], options: WiresOptions) -> list[float]:
     """The line's supports from the places its chains bend at (:func:`_support_places`):
-    one per cluster of places within ``min_length`` of one another (a support holds all
-    its conductors at one place along the line)."""
+    one per cluster of two or more places within ``min_length`` of one another (a support
+    holds all its conductors at one place along the line, and a line has two wires or more;
+    one chain bending alone is as likely a row of ground texture or a false pairing)."""
     if not places:
         return []
     p = np.sort(np.asarray(places, np.float64))
     groups = np.split(p, np.flatnonzero(np.diff(p) > options.min_length) + 1)
-    return [float(np.median(g)) for g in groups]
+    return [float(np.median(g)) for g in groups if len(g) >= 2]
 
 
 def _held(pts: F64, idx: I64, along: F64, options: WiresOptions) -> FittedWire | None:
