@@ -167,6 +167,10 @@ def test_a_line_leaving_a_pole_of_another_is_found_from_that_pole(tmp_path_facto
     assert ev.ghost_wires == 0 and ev.outlier_share < 0.01
     line3 = [w for w, t in zip(ev.wires, truth, strict=True) if t.line == 3]
     assert all(w.completeness >= 0.8 for w in line3)
+    # The pole line runs on 25 m past the junction: its chains are cut there (each side's
+    # curve on the points it holds, beside false pairings), and its second span measured.
+    span2 = [w for w, t in zip(ev.wires, truth, strict=True) if t.line == 2 and t.span == 2]
+    assert len(span2) == 3 and all(w.completeness >= 0.8 for w in span2)
     truth_junction = next(s for s in supports if s["kind"] == "junction")
     found = [s for s in result.line_supports if s.kind == "junction"]
     assert len(found) == 1 and len(found[0].lines) == 2
