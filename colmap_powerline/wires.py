@@ -528,21 +528,19 @@ def _support_places(pts: F64, idx: I64, along: F64, options: WiresOptions) -> li
         # decimetres off the wire (layers), whose squares would outweigh the wire's own.
         pl, rl, kl = _held_parabola(x[:k], z[:k], options.inlier_distance)
         pr, rr, kr = _held_parabola(x[k:], z[k:], options.inlier_distance)
-        both = float(rl @ rl + rr @ rr)
+        bend = np.degrees(np.arctan(pl[1]) - np.arctan(pr[1]))  # slopes at b (x = 0)
+        # Each curve must be the wire of its side, and the spans' curves meet at their
+        # support (a side may hold a false pairing's layer: its curve then runs beside
+        # the other, not into it).
+        if min(kl.mean(), kr.mean()) < 0.5 or bend < SUPPORT_MIN_BEND_DEG:
+            continue
+        meet = _where_curves_meet(pl, pr, options.min_length)
+        if meet is None:
+            continue
         xi, zi = np.r_[x[:k][kl], x[k:][kr]], np.r_[z[:k][kl], z[k:][kr]]
         one = float(np.sum((zi - np.polyval(np.polyfit(xi, zi, 2), xi)) ** 2))
-        share = both / one if one > 0 else 1.0
-        bend = np.degrees(np.arctan(pl[1]) - np.arctan(pr[1]))  # slopes at b (x = 0)
-        # The spans' curves meet at their support (a side may hold a false pairing's
-        # layer instead of the wire: its curve then runs beside the other, not into it).
-        meet = _where_curves_meet(pl, pr, options.min_length)
-        held = min(kl.mean(), kr.mean()) >= 0.5  # each curve the wire of its side
-        if (
-            held
-            and share <= SUPPORT_MAX_RSS_SHARE
-            and bend >= SUPPORT_MIN_BEND_DEG
-            and meet is not None
-        ):
+        share = float(rl @ rl + rr @ rr) / one if one > 0 else 1.0
+        if share <= SUPPORT_MAX_RSS_SHARE:
             found.append((share, float(b + meet)))
     cuts: list[float] = []
     for _, b in sorted(found):
