@@ -423,6 +423,61 @@ def test_a_rejected_wire_the_views_find_gets_a_second_look(small_scene, conducto
     assert new.s_range[1] - new.s_range[0] > 0.7 * conductors[1].length_m
 
 
+def _turned(w: FittedWire, degrees: float) -> FittedWire:
+    """``w`` turned in plan about its middle: its ends off the wire, its middle on it."""
+    t = np.deg2rad(degrees)
+    turn = np.array([[np.cos(t), -np.sin(t)], [np.sin(t), np.cos(t)]])
+    mid = w.points(np.array([np.mean(w.s_range)]))[0, :2]
+    return dataclasses.replace(
+        w,
+        plane_direction_xy=turn @ w.plane_direction_xy,
+        plane_origin_xy=mid + turn @ (w.plane_origin_xy - mid),
+    )
+
+
+def test_a_rejected_wire_found_at_some_of_its_places_is_looked_for_along_them(
+    small_scene, conductors
+):
+    """A rejected wire whose curve (fitted to few or poor matches) is 20 cm high and turned
+    by 1 degree: the views find it along its middle only, at 39 % of its places, under the
+    second look's bar. Looked for again along the curve of the places found, it is found
+    along most of the span, and kept, on the true wire. A curve where no wire hangs is
+    still not kept."""
+    from colmap_powerline.pipeline import ReconstructionOptions, _second_look, _traced
+    from colmap_powerline.trace import MIN_REDUNDANCY
+
+    options = ReconstructionOptions()
+    confirmed = [_curve(conductors[0], 0, 0.1, 0.9, 0.0)]
+    rejected = [
+        _turned(_curve(conductors[1], 1, 0.2, 0.8, 0.2), 1.0),
+        _curve(conductors[2], 2, 0.2, 0.8, -6.0),  # no wire there
+    ]
+    both, pts = _with_points(confirmed + rejected)
+    verified, corridor = _verified_and_corridor(pts, confirmed[0])
+    # As it stands, the views find the turned curve at fewer places than the bar asks.
+    look = dataclasses.replace(options.trace, max_rounds=0)
+    _, first, _, _ = _traced(
+        both[1:2], [_support(1, 0.0)], verified, small_scene, corridor, options, look,
+        both[:1], MIN_REDUNDANCY,
+    )  # fmt: skip
+    assert first[0].traced_share is not None and 0.2 <= first[0].traced_share < 0.5
+    wires, sup, out, _ = _second_look(
+        both[:1],
+        [_support(0, 1.0, 0.9)],
+        [(w, _support(w.wire_id, 0.0)) for w in both[1:]],
+        verified,
+        small_scene,
+        corridor,
+        options,
+    )
+    assert [w.wire_id for w in wires] == [0, 1]
+    new = wires[1]
+    d = distance_to_polyline(out.pts_in_world[new.point_indices], conductors[1].polyline(0.05))
+    assert np.median(d) < 0.04
+    assert sup[1].traced_share is not None and sup[1].traced_share >= 0.5
+    assert new.s_range[1] - new.s_range[0] > 0.7 * conductors[1].length_m
+
+
 def test_rejected_pieces_of_ten_metres_get_a_second_look():
     """The second look takes the rejected wires above the ground at least twice the
     shortest wire long (10 m): on the real road flight a whole span came only in 10-14 m
