@@ -56,11 +56,15 @@ def _add_synthetic_flags(p: argparse.ArgumentParser, default_scale: float) -> No
         "an angle tower (flights corridor, along4: strips along each leg); crossing: the span "
         "and a pole line crossing it at --crossing_deg (flight grid); branch: the crossing, "
         "the pole line going on past its second pole and a two-wire line leaving that pole at "
-        "--branch_deg (flight grid) (default %(default)s)",
+        "--branch_deg (flight grid); parallel: the span and a pole line parallel to it "
+        "--parallel_offset_m across (flight grid) (default %(default)s)",
     )
     p.add_argument("--turn_deg", type=float, default=SyntheticSpanOptions.turn_deg)
     p.add_argument("--crossing_deg", type=float, default=SyntheticSpanOptions.crossing_deg)
     p.add_argument("--branch_deg", type=float, default=SyntheticSpanOptions.branch_deg)
+    p.add_argument(
+        "--parallel_offset_m", type=float, default=SyntheticSpanOptions.parallel_offset_m
+    )
     p.add_argument("--seed", type=int, default=0)
 
 
@@ -74,6 +78,7 @@ def _synthetic_options(args: argparse.Namespace) -> SyntheticSpanOptions:
         turn_deg=args.turn_deg,
         crossing_deg=args.crossing_deg,
         branch_deg=args.branch_deg,
+        parallel_offset_m=args.parallel_offset_m,
         seed=args.seed,
         show_progress=not args.quiet,
     )

@@ -90,6 +90,9 @@ class Layout(StrEnum):
     BRANCH = "branch"  # the crossing, its pole line going on for a 25 m span past its second
     # pole, and a two-wire line leaving that pole (a junction) at branch_deg to it, 30 m to
     # a pole of its own; an area survey (grid) covers all three
+    PARALLEL = "parallel"  # the span, and a single-circuit pole line parallel to it
+    # parallel_offset_m across, lower down, on three poles 45 m apart; an area survey
+    # (grid) covers both
 
 
 # Side overlap of each flight pattern when SyntheticSpanOptions.side_overlap is None.
@@ -114,6 +117,7 @@ class SyntheticSpanOptions:
     turn_deg: float = 25.0  # layout "angle": the line's turn at the angle tower
     crossing_deg: float = 70.0  # layout "crossing": the pole line's angle to the span
     branch_deg: float = 75.0  # layout "branch": the branch line's angle to the pole line
+    parallel_offset_m: float = 28.0  # layout "parallel": the pole line's offset across
     line_azimuth_deg: float = 35.0  # direction tower A → B, clockwise from north
     height_above_wires_m: float = 45.0  # flying height above the highest wire
     forward_overlap: float = 0.8
@@ -149,7 +153,7 @@ class SyntheticSpanOptions:
                 "expected corridor or along4"
             )
         if (
-            self.layout in (Layout.CROSSING, Layout.BRANCH)
+            self.layout in (Layout.CROSSING, Layout.BRANCH, Layout.PARALLEL)
             and self.flight is not FlightPattern.GRID
         ):
             raise InputError(
@@ -168,6 +172,11 @@ class SyntheticSpanOptions:
             raise InputError(f"{self.crossing_deg=} but expected 20 ≤ crossing_deg ≤ 90")
         if not 20.0 <= self.branch_deg <= 160.0:
             raise InputError(f"{self.branch_deg=} but expected 20 ≤ branch_deg ≤ 160")
+        if not 12.0 <= abs(self.parallel_offset_m) <= 0.8 * GRID_HALF_WIDTH_M:
+            raise InputError(
+                f"{self.parallel_offset_m=} but expected 12 ≤ |parallel_offset_m| ≤ "
+                f"{0.8 * GRID_HALF_WIDTH_M:g} (clear of the towers' arms, inside the survey)"
+            )
         if self.side_overlap is not None and not 0.0 <= self.side_overlap < 1.0:
             raise InputError(f"{self.side_overlap=} but expected 0 ≤ side_overlap < 1")
 
@@ -576,6 +585,38 @@ def _make_towers_and_wires(
                         catenary_a_m=float(rng.uniform(300, 450)),  # 0.25-0.4 m of sag
                         diameter_m=0.022,
                         line=3,
+                    )
+                )
+    if opts.layout is Layout.PARALLEL:
+        # A distribution line beside the tower line, on three poles 45 m apart (two spans),
+        # the middle one abreast of the span's middle.
+        poles = []
+        for off in (-45.0, 0.0, 45.0):
+            xy = off * along + opts.parallel_offset_m * across
+            base = np.array([xy[0], xy[1], terrain.height(xy)[0]])
+            members, points = _pole(base, across)
+            towers.append(members)
+            poles.append(points)
+            supports.append(
+                {
+                    "line": 2,
+                    "kind": "pole",
+                    "base": base.tolist(),
+                    "top_z": max(p[2] for p in points.values()),
+                }  # fmt: skip
+            )
+        for key in poles[0]:
+            for k in range(len(poles) - 1):
+                wires.append(
+                    TrueWire(
+                        wire_id=len(wires),
+                        kind="conductor",
+                        attach_a=poles[k][key],
+                        attach_b=poles[k + 1][key],
+                        catenary_a_m=float(rng.uniform(300, 450)),  # 0.6-0.8 m of sag (45 m)
+                        diameter_m=0.022,
+                        line=2,
+                        span=k + 1,
                     )
                 )
     return towers, wires, supports

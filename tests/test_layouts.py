@@ -79,6 +79,28 @@ def test_branch_layout_geometry():
         SyntheticSpanOptions(layout="branch", flight="corridor")
 
 
+def test_parallel_layout_geometry():
+    span = build_span(SyntheticSpanOptions(scale=0.05, layout="parallel", flight="grid",
+                                           show_progress=False))  # fmt: skip
+    assert [s["kind"] for s in span.supports] == ["suspension"] * 2 + ["pole"] * 3
+    line1 = [w for w in span.wires if w.line == 1]
+    line2 = [w for w in span.wires if w.line == 2]
+    assert len(line1) == 8 and len(line2) == 6 and {w.span for w in line2} == {1, 2}
+    # Parallel, 28 m across (the middle conductor's plane from the span's middle), and
+    # inside the survey: six images or more see each pole line's attachment.
+    assert abs(line1[0].direction_xy @ line2[0].direction_xy) == pytest.approx(1.0, abs=1e-9)
+    across = np.array([line1[0].direction_xy[1], -line1[0].direction_xy[0]])
+    offsets = [abs(np.subtract(w.attach_a[:2], line1[0].attach_a[:2]) @ across) for w in line2]
+    assert min(offsets) > 20.0 and max(offsets) < 36.0
+    for w in line2:
+        for end in (w.attach_a, w.attach_b):
+            assert sum(bool(v.project(np.array([end]))[2][0]) for v in span.views) >= 6
+    with pytest.raises(ValueError, match="area survey"):
+        SyntheticSpanOptions(layout="parallel", flight="corridor")
+    with pytest.raises(ValueError, match="parallel_offset_m"):
+        SyntheticSpanOptions(layout="parallel", flight="grid", parallel_offset_m=5.0)
+
+
 def _run(tmp_path_factory, layout: str, flight: str, scale: float = 0.25):
     paths = generate_span(
         tmp_path_factory.mktemp(layout) / "span",
