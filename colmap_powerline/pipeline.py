@@ -184,6 +184,55 @@ def _merged(
     )
 
 
+# Wires of one line hang from its supports' cross-arms: each lies within this distance
+# (across the line and in height, at its middle) of another of the line's wires. The
+# widest phase spacings, of 765 kV lines on flat towers, are about 14 m; lines side by side
+# keep more between them.
+LINE_LINK_M = 15.0
+
+
+def _lines_apart(part: CorridorResult) -> CorridorResult:
+    """``part`` with the wires of each corridor that hang in groups apart (no wire of a group
+    within ``LINE_LINK_M`` of one of another, across the line and in height) as lines of their
+    own: the group with the most wires keeps the corridor, each other one gets a copy of it
+    (its direction and extent) centred on the group. A pole line along a tower line in the
+    same band of an area survey is otherwise taken for the tower line's outer wires: its
+    poles are not found (the tower line's wires run through them without a bend) and each of
+    its spans' wires is drawn from tower to tower."""
+    from scipy.cluster.hierarchy import fcluster, linkage
+
+    legs, corridors = list(part.legs), list(part.corridors)
+    for li, c in enumerate(part.corridors):
+        idx = [k for k, leg in enumerate(part.legs) if leg == li]
+        if len(idx) < 2:
+            continue
+        mids = np.array(
+            [part.wires[k].points(np.array([np.mean(part.wires[k].s_range)]))[0] for k in idx]
+        )
+        across = (mids[:, :2] - c.centre_xy) @ c.normal_xy
+        groups = fcluster(linkage(np.c_[across, mids[:, 2]], "single"), LINE_LINK_M, "distance")
+        if groups.max() == 1:
+            continue
+        by_size = sorted(set(groups.tolist()), key=lambda g: (-int((groups == g).sum()), g))
+        for g in by_size[1:]:
+            mine = groups == g
+            shift = float(np.mean(across[mine]))
+            corridors.append(dataclasses.replace(c, centre_xy=c.centre_xy + shift * c.normal_xy))
+            for k in np.asarray(idx)[mine]:
+                legs[k] = len(corridors) - 1
+            logger.info(
+                "lines: %d wires %.1f across the line at %.1f° from its other %d, in a group of "
+                "their own: a line beside it",
+                int(mine.sum()),
+                shift,
+                c.azimuth_deg,
+                int((~mine).sum()),
+            )
+    if len(corridors) == len(part.corridors):
+        return part
+    return dataclasses.replace(part, legs=legs, corridors=corridors)
+
+
 def _side_by_side(
     corridor: WireCorridor,
     parts: Sequence[CorridorResult],
@@ -737,7 +786,7 @@ def reconstruct(
         timings["pairs"] = time.perf_counter() - t0
         decoded = [p for c in corridors for p in c.decoded]
         parts = _reconstruct_corridors(scene, corridors, options, timings, tasks, store)
-        part = _merged(parts, options.wires.inlier_distance, options.wires.max_gap)
+        part = _lines_apart(_merged(parts, options.wires.inlier_distance, options.wires.max_gap))
         t0 = time.perf_counter()
         spans = _spans_of(scene, part, options)
         timings["spans"] = time.perf_counter() - t0
@@ -753,7 +802,9 @@ def reconstruct(
         timings["branches"] = time.perf_counter() - t0
         if more:
             parts += more
-            part = _merged(parts, options.wires.inlier_distance, options.wires.max_gap)
+            part = _lines_apart(
+                _merged(parts, options.wires.inlier_distance, options.wires.max_gap)
+            )
             t0 = time.perf_counter()
             spans = _spans_of(scene, part, options)
             timings["spans"] += time.perf_counter() - t0

@@ -1522,13 +1522,26 @@ def _chainages(
     def make(leg: _Leg, base: float, u_ref: float, sign: float) -> Callable[[F64], float]:
         return lambda xy: base + sign * (float(leg.u(xy)[0]) - u_ref)
 
+    def wires_u(li: int) -> list[float]:
+        return [
+            float(np.mean(axes[li].ends_u(w))) for w, g in zip(wires, legs, strict=True) if g == li
+        ]
+
     for start in range(len(axes)):
         if funcs[start] is not None:
             continue
-        # Start the line at a leg with one neighbour (its end), else at this one.
+        # Start the line at a leg with one neighbour (its end), else at this one, walking
+        # towards that neighbour (each next leg is walked away from the support it shares
+        # with the one before: a first leg walked away from it too folds the line back on
+        # itself, and its spans take the next leg's numbers).
         line = [li for li in range(len(axes)) if line_of_leg[li] == line_of_leg[start]]
         first = next((li for li in line if len(shared[li]) <= 1), start)
-        funcs[first] = make(axes[first], 0.0, 0.0, 1.0)
+        sign = 1.0
+        if len(shared[first]) == 1:
+            (xy,) = shared[first].values()
+            us = wires_u(first)
+            sign = 1.0 if not us or float(axes[first].u(xy)[0]) >= np.median(us) else -1.0
+        funcs[first] = make(axes[first], 0.0, 0.0, sign)
         todo = [first]
         while todo:
             li = todo.pop()
@@ -1539,11 +1552,7 @@ def _chainages(
                     continue
                 leg = axes[nb]
                 u_at = float(leg.u(xy)[0])
-                us = [
-                    float(np.mean(leg.ends_u(w)))
-                    for w, g in zip(wires, legs, strict=True)
-                    if g == nb
-                ]
+                us = wires_u(nb)
                 sign = 1.0 if not us or np.median(us) >= u_at else -1.0
                 funcs[nb] = make(leg, here(xy), u_at, sign)
                 todo.append(nb)

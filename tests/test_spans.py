@@ -148,11 +148,20 @@ def test_a_kink_is_found_where_a_wire_passes_a_support():
     assert find_kink(w1, a, SpanOptions()) is None
 
 
-@pytest.mark.parametrize("turn_deg", [0.0, 25.0])
-def test_supports_spans_and_conductors_of_a_line(turn_deg):
+@pytest.mark.parametrize(
+    ("turn_deg", "flipped"), [(0.0, ()), (25.0, ()), (25.0, (0,)), (25.0, (1,)), (25.0, (0, 1))]
+)
+def test_supports_spans_and_conductors_of_a_line(turn_deg, flipped):
+    # ``flipped``: the legs whose corridor's azimuth was measured the other way round (an
+    # axial direction: either way is the line's). Walked away from the angle support, a
+    # first leg folded the line back on itself, and both legs' spans were numbered 1 and 2
+    # (the package's angle layout at half scale).
     rng = np.random.default_rng(1)
     pts, wires, legs, towers = _line(rng, turn_deg, join_first_two=True)
-    corridors = [_corridor(90.0), _corridor(90.0 - turn_deg)]
+    corridors = [
+        _corridor((az + (180.0 if k in flipped else 0.0)) % 360.0)
+        for k, az in enumerate((90.0, 90.0 - turn_deg))
+    ]
     if turn_deg == 0.0:  # a straight line is one corridor
         corridors, legs = corridors[:1], [0] * len(legs)
     views = _views(220.0)  # the images see 40 m past the end towers
