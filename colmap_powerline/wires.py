@@ -578,29 +578,6 @@ def _held_parabola(x: F64, z: F64, tol: float) -> tuple[F64, F64, npt.NDArray[np
 HELD_PARABOLA_ROUNDS = 5
 
 
-def _let_go_places(
-    pts: F64, idx: I64, fit: FittedWire, along: F64, options: WiresOptions
-) -> list[float]:
-    """The places a chain that one curve (``fit``) holds most of bends at
-    (:func:`_support_places`) where that curve lets go of its points: it holds fewer than
-    half of those within ``min_length`` of the place. Over two short spans kinked at a pole
-    the one curve holds their outer parts and leaves the stretch by the pole; along a chain
-    it holds there, a bend the two curves see is its noise or a false pairing's layer (the
-    road flight's line across the field: a place 18 m from either pole, found on two of its
-    chains, that cut a conductor and lost 17 m of it)."""
-    places = _support_places(pts, idx, along, options)
-    if not places:
-        return []
-    s = pts[idx, :2] @ along
-    kept = np.isin(idx, fit.point_indices)
-    out = []
-    for b in places:
-        near = np.abs(s - b) <= options.min_length
-        if near.any() and kept[near].mean() < 0.5:
-            out.append(b)
-    return out
-
-
 def _supports_of_line(places: list[float], options: WiresOptions) -> list[float]:
     """The line's supports from the places its chains bend at (:func:`_support_places`):
     one per cluster of two or more places within ``min_length`` of one another (a support
@@ -809,9 +786,7 @@ def split_wires(
     comp = comp_of_vox[inverse]
     order = np.argsort(comp, kind="stable")
     bounds = np.searchsorted(comp[order], np.arange(n_comp + 1))
-    # The chains one curve holds (with the points of those long enough to run across a
-    # support), then those it does not.
-    one_curve: list[tuple[FittedWire, I64 | None]] = []
+    pieces: list[FittedWire] = []
     unheld: list[I64] = []
     for k in range(n_comp):
         idx = order[bounds[k] : bounds[k + 1]]
@@ -820,39 +795,16 @@ def split_wires(
         fit = _fit(pts, idx, along, options)
         fits = fit if fit is not None and fit.rms_residual <= options.max_rms else None
         if fits is not None and (not layers or 2 * len(fits.point_indices) >= len(idx)):
-            long = layers and np.ptp(s[idx]) > 4 * options.min_length
-            one_curve.append((fits, idx if long else None))
+            pieces.append(fits)
         elif layers:
             unheld.append(idx)
     # A chain one curve does not hold runs through the line's supports (a straight line's
     # conductors run on from span to span: the chains join one span's wire to the next's),
-    # or holds several curves. So may one that one curve holds most of: a pole line's short
-    # spans kink by a few degrees, and one curve over two of them holds their outer parts
-    # and lets go of the stretches by the pole between (the package's `parallel` layout:
-    # 45 m spans, 60 % of each measured; :func:`_let_go_places`). The supports are where
-    # the chains bend, all of them together: a chain of several layers does not show its
-    # own bend.
+    # or holds several curves. The supports are where the chains bend, all of them together:
+    # a chain of several layers does not show its own bend.
     supports = _supports_of_line(
-        [b for idx in unheld for b in _support_places(pts, idx, along, options)]
-        + [
-            b
-            for fits, idx in one_curve
-            if idx is not None
-            for b in _let_go_places(pts, idx, fits, along, options)
-        ],
-        options,
+        [b for idx in unheld for b in _support_places(pts, idx, along, options)], options
     )
-    pieces: list[FittedWire] = []
-    for fits, long_idx in one_curve:
-        if long_idx is not None and any(
-            float(s[long_idx].min()) + options.min_length
-            < b
-            < float(s[long_idx].max()) - options.min_length
-            for b in supports
-        ):
-            pieces += _chain_curves(pts, long_idx, along, options, supports)
-        else:
-            pieces.append(fits)
     for idx in unheld:
         pieces += _chain_curves(pts, idx, along, options, supports)
 
