@@ -735,3 +735,33 @@ def test_a_line_leaving_a_support_of_another_is_a_line_of_its_own(unmeasured_m):
     # The main line's spans are as without the branch: 4 spans x 4 conductors.
     assert sum(p.line == 1 for p in sp.placement) == 16
     assert sorted({p.span for p in sp.placement if p.line == 1}) == [1, 2, 3, 4]
+
+
+def test_wires_hanging_in_groups_apart_are_lines_of_their_own():
+    """A double circuit (conductors 10 m apart across, 5 m apart in height) and a pole line
+    28 m beside it, lower, in one corridor: two lines, the pole line's corridor centred on
+    it; the double circuit alone stays one line (its two sides 10 m apart)."""
+    from colmap_powerline.pipeline import _lines_apart
+    from colmap_powerline.results import CorridorResult
+
+    rng = np.random.default_rng(2)
+    places = [(c, z) for c in (-5.0, 5.0) for z in (21.0, 26.0, 31.0)]
+    places += [(26.8, 10.5), (28.0, 12.0), (29.2, 10.5)]
+    pts, wires = [], []
+    for k, (c, z) in enumerate(places):
+        p = _span_points(np.r_[-50.0, c, z], np.r_[50.0, c, z], 600.0, rng)
+        idx = np.arange(sum(len(q) for q in pts), sum(len(q) for q in pts) + len(p))
+        pts.append(p)
+        wires.append(_wire(np.concatenate(pts), idx, np.array([1.0, 0.0]), k))
+    corridor = _corridor(90.0)
+
+    def part(ws):
+        return CorridorResult(corridor, [], [], None, ws, [], [], len(ws), 0, [0] * len(ws),
+                              [corridor])  # fmt: skip
+
+    out = _lines_apart(part(wires))
+    assert out.legs == [0] * 6 + [1] * 3 and len(out.corridors) == 2
+    assert abs(out.corridors[1].centre_xy @ corridor.normal_xy) == pytest.approx(28.0, abs=0.1)
+    assert out.corridors[1].azimuth_deg == corridor.azimuth_deg
+    alone = part(wires[:6])
+    assert _lines_apart(alone) is alone
