@@ -454,6 +454,49 @@ def _leg_frames(opts: SyntheticSpanOptions) -> list[tuple[F64, F64, F64]]:
     ]
 
 
+def _pole_line(
+    sites_xy: list[F64],
+    across: F64,
+    kinds: list[str],
+    catenary_a_m: tuple[float, float],
+    terrain: Terrain,
+    rng: np.random.Generator,
+    towers: list[list[Member]],
+    wires: list[TrueWire],
+    supports: list[dict],
+) -> list[F64]:
+    """Line 2: a pole at each site (its cross-arm along ``across``, ``kinds`` its support
+    kind), appended to ``towers`` and ``supports``, and each conductor's spans between them
+    (catenary parameter drawn from ``catenary_a_m``), appended to ``wires``. Returns the
+    poles' bases."""
+    poles, bases = [], []
+    for xy, kind in zip(sites_xy, kinds, strict=True):
+        base = np.array([xy[0], xy[1], terrain.height(xy)[0]])
+        members, points = _pole(base, across)
+        towers.append(members)
+        poles.append(points)
+        bases.append(base)
+        supports.append(
+            {"line": 2, "kind": kind, "base": base.tolist(),
+             "top_z": max(p[2] for p in points.values())}
+        )  # fmt: skip
+    for key in poles[0]:
+        for k in range(len(poles) - 1):
+            wires.append(
+                TrueWire(
+                    wire_id=len(wires),
+                    kind="conductor",
+                    attach_a=poles[k][key],
+                    attach_b=poles[k + 1][key],
+                    catenary_a_m=float(rng.uniform(*catenary_a_m)),
+                    diameter_m=0.022,
+                    line=2,
+                    span=k + 1,
+                )
+            )
+    return bases
+
+
 def _make_towers_and_wires(
     opts: SyntheticSpanOptions, terrain: Terrain, rng: np.random.Generator
 ) -> tuple[list[list[Member]], list[TrueWire], list[dict]]:
@@ -516,37 +559,13 @@ def _make_towers_and_wires(
         along_c, across_c = plan_axes(opts.line_azimuth_deg + opts.crossing_deg)
         crossing = 0.15 * opts.span_m * along
         offsets = (-35.0, 35.0, 60.0) if opts.layout is Layout.BRANCH else (-35.0, 35.0)
-        poles, pole_xy = [], []
-        for k, off in enumerate(offsets):
-            xy = crossing + off * along_c
-            base = np.array([xy[0], xy[1], terrain.height(xy)[0]])
-            members, points = _pole(base, across_c)
-            towers.append(members)
-            poles.append(points)
-            pole_xy.append(base)
-            junction = opts.layout is Layout.BRANCH and k == 1
-            supports.append(
-                {
-                    "line": 2,
-                    "kind": "junction" if junction else "pole",
-                    "base": base.tolist(),
-                    "top_z": max(p[2] for p in points.values()),
-                }  # fmt: skip
-            )
-        for key in poles[0]:
-            for k in range(len(poles) - 1):
-                wires.append(
-                    TrueWire(
-                        wire_id=len(wires),
-                        kind="conductor",
-                        attach_a=poles[k][key],
-                        attach_b=poles[k + 1][key],
-                        catenary_a_m=float(rng.uniform(400, 600)),  # 1.0-1.5 m of sag (70 m)
-                        diameter_m=0.022,
-                        line=2,
-                        span=k + 1,
-                    )
-                )
+        kinds = ["pole"] * len(offsets)
+        if opts.layout is Layout.BRANCH:
+            kinds[1] = "junction"
+        pole_xy = _pole_line(
+            [crossing + off * along_c for off in offsets], across_c, kinds, (400, 600),
+            terrain, rng, towers, wires, supports,
+        )  # fmt: skip  # 1.0-1.5 m of sag (70 m)
         if opts.layout is Layout.BRANCH:
             # Two conductors on a cross-arm of their own, a metre under the pole line's,
             # to a pole 30 m away.
@@ -589,36 +608,11 @@ def _make_towers_and_wires(
                 )
     if opts.layout is Layout.PARALLEL:
         # A distribution line beside the tower line, on three poles 45 m apart (two spans),
-        # the middle one abreast of the span's middle.
-        poles = []
-        for off in (-45.0, 0.0, 45.0):
-            xy = off * along + opts.parallel_offset_m * across
-            base = np.array([xy[0], xy[1], terrain.height(xy)[0]])
-            members, points = _pole(base, across)
-            towers.append(members)
-            poles.append(points)
-            supports.append(
-                {
-                    "line": 2,
-                    "kind": "pole",
-                    "base": base.tolist(),
-                    "top_z": max(p[2] for p in points.values()),
-                }  # fmt: skip
-            )
-        for key in poles[0]:
-            for k in range(len(poles) - 1):
-                wires.append(
-                    TrueWire(
-                        wire_id=len(wires),
-                        kind="conductor",
-                        attach_a=poles[k][key],
-                        attach_b=poles[k + 1][key],
-                        catenary_a_m=float(rng.uniform(300, 450)),  # 0.6-0.8 m of sag (45 m)
-                        diameter_m=0.022,
-                        line=2,
-                        span=k + 1,
-                    )
-                )
+        # the middle one abreast of the span's middle; 0.6-0.8 m of sag.
+        _pole_line(
+            [off * along + opts.parallel_offset_m * across for off in (-45.0, 0.0, 45.0)],
+            across, ["pole"] * 3, (300, 450), terrain, rng, towers, wires, supports,
+        )  # fmt: skip
     return towers, wires, supports
 
 
