@@ -277,16 +277,66 @@ def find_kink(wire: FittedWire, pts_in_world: F64, options: SpanOptions) -> floa
     if len(s) > 4000:  # evenly thinned: the fit needs the shape, not every point
         keep = np.linspace(0, len(s) - 1, 4000).astype(np.int64)
         s, z = s[keep], z[keep]
-    if len(s) < 20 or s[-1] - s[0] < 2 * options.min_piece_m:
+    return _kink_in(s, z, options, 10)
+
+
+# A wire that one curve holds over two short spans: that curve holds their outer parts and
+# lets go of the points by the support between, where both spans rise to it (the package's
+# `parallel` layout: a pole line's 45 m spans kinked by 6-7°, its points 0.8 m above the one
+# curve at the pole, 3 % of them held there). The points in its plane near the curve tell
+# (:func:`band_kink`): within this height of the curve (a curve over two spans kinked by
+# 10° misses the points by the support by about a hundredth of the spans' length)...
+BAND_HEIGHT_M = 1.0
+# ... their median height every this far along it (a false pairing's layer beside the wire,
+# a fifth of the points, moves no median) ...
+BAND_STEP_M = 1.0
+# ... where it holds at least this many of them.
+BAND_MIN_POINTS = 5
+
+
+def band_kink(
+    wire: FittedWire, pts_in_world: F64, options: SpanOptions, max_across: float
+) -> tuple[float, I64] | None:
+    """The position along ``wire``'s plane of a support it runs across where its curve lets
+    go of the points (see ``BAND_HEIGHT_M``): the kink test of :func:`find_kink` on the
+    median heights of all the points within ``max_across`` of its plane and
+    ``BAND_HEIGHT_M`` of its curve, held by it or not; with those points' indices. None
+    where there is no such kink."""
+    lo, hi = wire.s_range
+    s, c, _ = wire.plane_coords(pts_in_world)
+    near = np.flatnonzero((np.abs(c) <= max_across) & (s >= lo) & (s <= hi))
+    s, z = s[near], pts_in_world[near, 2]
+    dz = z - wire.points(s)[:, 2]
+    keep = np.abs(dz) <= BAND_HEIGHT_M
+    s, dz, near = s[keep], dz[keep], near[keep]
+    if not len(s):
+        return None
+    edges = np.arange(lo, hi + BAND_STEP_M, BAND_STEP_M)
+    bins = np.clip(np.digitize(s, edges) - 1, 0, len(edges) - 2)
+    counts = np.bincount(bins, minlength=len(edges) - 1)
+    filled = np.flatnonzero(counts >= BAND_MIN_POINTS)
+    if not len(filled):
+        return None
+    centres = 0.5 * (edges[filled] + edges[filled + 1])
+    medians = np.array([np.median(dz[bins == b]) for b in filled])
+    t = _kink_in(centres, wire.points(centres)[:, 2] + medians, options, BAND_MIN_POINTS)
+    return None if t is None else (t, near)
+
+
+def _kink_in(s: F64, z: F64, options: SpanOptions, min_side: int) -> float | None:
+    """:func:`find_kink` on sorted samples (``s`` along the plane, ``z``): each side of the
+    kink holds ``min_side`` of them and ``min_piece_m`` of wire."""
+    if len(s) < 2 * min_side or s[-1] - s[0] < 2 * options.min_piece_m:
         return None
     centre, scale = 0.5 * (s[0] + s[-1]), 0.5 * (s[-1] - s[0])
     x = (s - centre) / scale
     left, right = parabola_split_rss(x, z)
-    k = np.arange(len(s) + 1)
-    ok = (k >= 10) & (k <= len(s) - 10)
-    ok[10 : len(s) - 9] &= (s[9 : len(s) - 10] - s[0] >= options.min_piece_m) & (
-        s[-1] - s[10 : len(s) - 9] >= options.min_piece_m
-    )
+    n = len(s)
+    k = np.arange(n + 1)
+    ok = (k >= min_side) & (k <= n - min_side)
+    ok[min_side : n - min_side + 1] &= (
+        s[min_side - 1 : n - min_side] - s[0] >= options.min_piece_m
+    ) & (s[-1] - s[min_side : n - min_side + 1] >= options.min_piece_m)
     if not ok.any():
         return None
     split = np.where(ok, left + right, np.inf)
@@ -844,13 +894,17 @@ _Located = tuple[list[int], F64, str, set[int]]  # (legs, plan position, found b
 @dataclass
 class _Work:
     """The wires as :func:`find_spans` cuts them: each with the input wire it came from and
-    the leg (corridor) that measured it; ``cut_ids``: the wires made by a cut."""
+    the leg (corridor) that measured it; ``cut_ids``: the wires made by a cut; ``let_go``:
+    for a wire whose curve lets go of the points by a support (:func:`band_kink`), the
+    points in its plane near its curve, which its pieces are fitted to when it is cut
+    there."""
 
     wires: list[FittedWire]
     source: list[int]
     legs: list[int]
     cut_ids: set[int]
     next_id: int
+    let_go: dict[int, I64] = field(default_factory=dict)
 
     def on_leg(self, li: int) -> list[int]:
         return [k for k in range(len(self.wires)) if self.legs[k] == li]
@@ -941,8 +995,12 @@ def _kinks(
     wires_options: WiresOptions,
 ) -> list[_Candidate]:
     """A wire measured across a support is cut at its kink there (and its pieces looked at
-    again: a wire may run across two); the pieces go into ``work``."""
+    again: a wire may run across two); the pieces go into ``work``. A wire not cut whose
+    curve lets go of the points in its plane by a place (:func:`band_kink`) gives a
+    support there where another wire of its leg does so too."""
     cands: list[_Candidate] = []
+    band: list[_Candidate] = []
+    let_go: dict[int, I64] = {}
     for k, w in enumerate(wires):
         leg = axes[legs[k]]
         pieces, kinks, work.next_id = _cut_at_kinks(
@@ -955,6 +1013,29 @@ def _kinks(
             work.cut_ids.update(p.wire_id for p in pieces)
         for xy in kinks:
             cands.append(_Candidate(legs[k], float(leg.u(xy)[0]), "kink", set()))
+        if not kinks:
+            found = band_kink(w, pts_in_world, options, 2.5 * wires_options.inlier_distance)
+            if found is not None:
+                u = float(leg.u(w.points(np.array([found[0]]))[:, :2])[0])
+                band.append(_Candidate(legs[k], u, "kink", {w.wire_id}))
+                let_go[w.wire_id] = np.union1d(w.point_indices, found[1])
+    # A wire's curve letting go of the points by a place is a support where another wire of
+    # the leg does so too (a support holds all its conductors; one wire alone is as likely
+    # a stretch it holds poorly: on the road flight one conductor's curve at 13 m from a
+    # pole).
+    for c in band:
+        if any(
+            o.leg == c.leg and o.wire_ids != c.wire_ids and abs(o.u - c.u) <= options.support_radius
+            for o in band
+        ):
+            logger.info(
+                "spans: wire %d's curve lets go of the points in its plane at %.1f along its "
+                "line, as another wire's does there: a support",
+                *c.wire_ids,
+                c.u,
+            )
+            cands.append(c)
+            work.let_go.update((wid, let_go[wid]) for wid in c.wire_ids)
     return cands
 
 
@@ -1182,9 +1263,17 @@ def _cut_at_supports(
                 r = options.support_radius
                 if s_li != li or not (lo + r < u < hi - r):
                     continue
-                cut = _cut(
-                    out[k], leg.s_of(out[k], u), pts_in_world, leg, wires_options, work.next_id
-                )
+                cut = None
+                if out[k].wire_id in work.let_go:
+                    # Its pieces fitted to the points by the support its curve let go of.
+                    wide = dataclasses.replace(out[k], point_indices=work.let_go[out[k].wire_id])
+                    cut = _cut(wide, leg.s_of(wide, u), pts_in_world, leg, wires_options,
+                               work.next_id)  # fmt: skip
+                if cut is None:
+                    cut = _cut(
+                        out[k], leg.s_of(out[k], u), pts_in_world, leg, wires_options,
+                        work.next_id,
+                    )  # fmt: skip
                 if cut is None:
                     # One side holds too few points for a wire of its own: a tail the curve
                     # took past the support (a few stray points on it continued).

@@ -148,6 +148,51 @@ def test_a_kink_is_found_where_a_wire_passes_a_support():
     assert find_kink(w1, a, SpanOptions()) is None
 
 
+def _pole_line(rng, conductors):
+    """A pole line's conductors over two 45 m spans kinked at a pole at the origin (0.6 m
+    of sag, attached at 10 m), each held by one curve over both spans: the curve fitted to
+    the spans' outer parts, where it holds their points (the package's `parallel` layout),
+    with their points by the pole in the cloud but not the curve's."""
+    parts = [
+        np.r_[
+            _span_points([-45, c, 10], [0, c, 10], 420.0, rng, keep=(1.0, 0.3)),
+            _span_points([0, c, 10], [45, c, 10], 420.0, rng, keep=(0.3, 1.0)),
+        ]
+        for c in conductors
+    ]
+    pts = np.concatenate(parts)
+    starts = np.cumsum([0] + [len(p) for p in parts])
+    wires = []
+    for k in range(len(parts)):
+        idx = np.arange(starts[k], starts[k + 1])
+        outer = idx[np.abs(pts[idx, 0]) > 22.0]
+        w = _wire(pts, outer, np.array([1.0, 0.0]), k)
+        held = outer[w.distance(pts[outer]) < WiresOptions().inlier_distance]
+        wires.append(dataclasses.replace(w, point_indices=held))
+    return pts, wires
+
+
+def test_a_support_is_found_where_one_curve_over_two_spans_lets_go_of_their_points():
+    # One curve over two short spans kinked at a pole holds only their outer parts, and fits
+    # them: no kink in the points it holds. The points in its plane by the pole lie up to
+    # 0.6 m above it, and two conductors' curves let go of them at the same place.
+    rng = np.random.default_rng(3)
+    pts, wires = _pole_line(rng, [-1.0, 0.0, 1.0])
+    assert all(find_kink(w, pts, SpanOptions()) is None for w in wires)
+    sp = find_spans(_views(50.0), _flat, wires, [0, 0, 0], [_corridor(90.0)], pts)
+    inner = [s for s in sp.supports if s.kind != "end"]
+    assert len(inner) == 1 and np.hypot(*inner[0].position[:2]) < 0.5
+    # Each conductor cut there: two spans of three conductors, each reaching the pole.
+    assert len(sp.wires) == 6
+    assert sorted(p.span for p in sp.placement) == [1, 1, 1, 2, 2, 2]
+    for w in sp.wires:
+        ends = w.points(np.array(w.s_range))
+        assert np.min(np.abs(ends[:, 0])) < 0.5
+    # One conductor's curve letting go of the points by a place is no support.
+    sp = find_spans(_views(50.0), _flat, wires[:1], [0], [_corridor(90.0)], pts)
+    assert not [s for s in sp.supports if s.kind != "end"] and len(sp.wires) == 1
+
+
 @pytest.mark.parametrize(
     ("turn_deg", "flipped"), [(0.0, ()), (25.0, ()), (25.0, (0,)), (25.0, (1,)), (25.0, (0, 1))]
 )

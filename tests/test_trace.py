@@ -393,6 +393,39 @@ def test_wires_the_views_would_fix_but_do_not_find_are_dropped(conductors):
     assert [w.z0 for w in kept] == [wires[1].z0]
 
 
+def test_a_wire_nothing_tells_from_a_pairing_must_be_found_at_half_its_places(conductors):
+    """A wire that no view can tell from a false pairing (no crossing view), or that one
+    strip alone confirms, has only the views that would fix it as evidence: found at under
+    half its places it goes (a pairing of two wires' lines lies on one or the other in many
+    views: the package's false wires at 23-34 %), at half or more it stays. A wire views
+    from several strips confirm keeps the looser bar of a confirmed wire."""
+    from colmap_powerline.pipeline import (
+        MIN_SECOND_LOOK_SHARE,
+        MIN_TRACED_SHARE,
+        _without_untraced,
+    )
+
+    assert MIN_TRACED_SHARE < 0.3 < MIN_SECOND_LOOK_SHARE
+    wires = [
+        dataclasses.replace(
+            _curve(t, k, 0.2, 0.8, 0.0), point_indices=np.arange(10 * k, 10 * k + 10)
+        )
+        for k, t in enumerate(conductors[:4])
+    ]
+    sup = [
+        _support(0, 1.0, 0.3, crossing=0, confirming=2),  # no crossing view: goes
+        _support(1, 1.0, 0.3, confirming=1),  # one strip confirms it: goes
+        _support(2, 1.0, 0.3, confirming=2),  # confirmed from two strips: stays
+        _support(3, 1.0, MIN_SECOND_LOOK_SHARE, crossing=0, confirming=1),  # half: stays
+    ]
+    kept, kept_sup = _without_untraced(wires, sup)
+    assert [w.z0 for w in kept] == [wires[2].z0, wires[3].z0]
+    assert [s.wire_id for s in kept_sup] == [0, 1]
+    # A hypothesis of the line evidence (no detector confirms it) is held to the same bar.
+    faint = dataclasses.replace(sup[2], found_by="line evidence", confirming_strips=0)
+    assert _without_untraced(wires[2:3], [faint])[0] == []
+
+
 def test_a_rejected_wire_the_views_find_gets_a_second_look(small_scene, conductors):
     """Of the wires the hit rates rejected, a true conductor joins the wires (traced in
     full); a curve where no wire hangs, and a stretch of a wire already there, do not."""
