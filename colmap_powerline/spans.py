@@ -283,9 +283,10 @@ def find_kink(wire: FittedWire, pts_in_world: F64, options: SpanOptions) -> floa
 # A wire that one curve holds over two short spans: that curve holds their outer parts and
 # lets go of the points by the support between, where both spans rise to it (the package's
 # `parallel` layout: a pole line's 45 m spans kinked by 6-7°, its points 0.8 m above the one
-# curve at the pole, 3 % of them held there). The points in its plane near the curve tell
-# (:func:`band_kink`): within this height of the curve (a curve over two spans kinked by
-# 10° misses the points by the support by about a hundredth of the spans' length)...
+# curve at the pole, 2-6 % of them held within 10 m of it). The points in its plane near
+# the curve tell (:func:`band_kink`): within this height of the curve (a curve over two
+# spans kinked by 10° misses the points by the support by about a hundredth of the spans'
+# length)...
 BAND_HEIGHT_M = 1.0
 # ... their median height every this far along it (a false pairing's layer beside the wire,
 # a fifth of the points, moves no median) ...
@@ -1263,17 +1264,17 @@ def _cut_at_supports(
                 r = options.support_radius
                 if s_li != li or not (lo + r < u < hi - r):
                     continue
+                # A wire whose curve let go of the points by a support: its pieces fitted
+                # to those points too.
+                let_go = work.let_go.get(out[k].wire_id)
+                tries = [out[k]] if let_go is None else [
+                    dataclasses.replace(out[k], point_indices=let_go), out[k]
+                ]  # fmt: skip
                 cut = None
-                if out[k].wire_id in work.let_go:
-                    # Its pieces fitted to the points by the support its curve let go of.
-                    wide = dataclasses.replace(out[k], point_indices=work.let_go[out[k].wire_id])
-                    cut = _cut(wide, leg.s_of(wide, u), pts_in_world, leg, wires_options,
-                               work.next_id)  # fmt: skip
-                if cut is None:
-                    cut = _cut(
-                        out[k], leg.s_of(out[k], u), pts_in_world, leg, wires_options,
-                        work.next_id,
-                    )  # fmt: skip
+                for w in tries:
+                    cut = _cut(w, leg.s_of(w, u), pts_in_world, leg, wires_options, work.next_id)
+                    if cut is not None:
+                        break
                 if cut is None:
                     # One side holds too few points for a wire of its own: a tail the curve
                     # took past the support (a few stray points on it continued).
