@@ -215,8 +215,8 @@ def test_a_pole_line_beside_a_tower_line_is_a_line_of_its_own(tmp_path_factory):
 
     Measured at this commit: the tower line's six conductors 100 %, its towers 0.10 and
     0.23 m in plan; the pole line's six span-wires 100 %, its middle pole 0.02 m, its far
-    pole 0.43 m, its first pole 5.05 m off (the line evidence runs on past it); no ghost,
-    0.05 % of points > 30 cm."""
+    pole 0.43 m, its first pole 5.05 m off (tracing carried two of its conductors on past
+    it); no ghost, 0.05 % of points > 30 cm."""
     result, ev, truth, supports = _run(tmp_path_factory, "parallel", "grid", scale=0.5)
     assert ev.ghost_wires == 0 and ev.outlier_share < 0.01
     line1 = [w for w, t in zip(ev.wires, truth, strict=True) if t.line == 1]
