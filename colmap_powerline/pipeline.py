@@ -2305,6 +2305,13 @@ def _without_untraced(
         # No view can tell it from a false pairing, or one strip alone confirms it.
         return s.crossing_views == 0 or s.confirming_strips < 2
 
+    def untold_why(s: WireSupport) -> str:
+        return (
+            "no view can tell it from a false pairing"
+            if s.crossing_views == 0
+            else f"{s.confirming_strips} strip(s) of the views confirm it apart from other wires"
+        )
+
     def bar(s: WireSupport) -> float:
         # Where nothing else tells it from a false pairing, the views that would fix it are
         # all the evidence left, and it must meet the bar of a wire that no check confirmed
@@ -2330,24 +2337,16 @@ def _without_untraced(
             why = "the views find it but measure it at no place (no point of it)"
         elif unfixed(s):
             why = (
-                "no view can tell it from a false pairing"
-                if s.crossing_views == 0
-                else f"{s.confirming_strips} strip(s) of the views confirm it apart from other "
-                "wires (one confirms a plane, not a line)"
-            ) + (
-                " and the views fix it nowhere apart from the other wires (a pairing of lines "
-                "other wires or their shadows draw)"
+                untold_why(s)
+                + (" (one confirms a plane, not a line)" if s.crossing_views else "")
+                + " and the views fix it nowhere apart from the other wires (a pairing of "
+                "lines other wires or their shadows draw)"
             )
         elif untold(s) and (s.traced_share or 0.0) >= MIN_TRACED_SHARE:
             why = (
                 "the views that would fix it find a wire at "
                 f"{100 * (s.traced_share or 0.0):.0f} % of its places, under half, and "
-                + (
-                    "no view can tell it from a false pairing"
-                    if s.crossing_views == 0
-                    else f"{s.confirming_strips} strip(s) of the views confirm it apart from "
-                    "other wires"
-                )
+                + untold_why(s)
             )
         else:
             why = (

@@ -304,12 +304,11 @@ def band_kink(
     ``BAND_HEIGHT_M`` of its curve, held by it or not; with those points' indices. None
     where there is no such kink."""
     lo, hi = wire.s_range
-    s, c, _ = wire.plane_coords(pts_in_world)
-    near = np.flatnonzero((np.abs(c) <= max_across) & (s >= lo) & (s <= hi))
-    s, z = s[near], pts_in_world[near, 2]
-    dz = z - wire.points(s)[:, 2]
-    keep = np.abs(dz) <= BAND_HEIGHT_M
-    s, dz, near = s[keep], dz[keep], near[keep]
+    s, c, dz = wire.plane_coords(pts_in_world)
+    near = np.flatnonzero(
+        (np.abs(c) <= max_across) & (s >= lo) & (s <= hi) & (np.abs(dz) <= BAND_HEIGHT_M)
+    )
+    s, dz = s[near], dz[near]
     if not len(s):
         return None
     edges = np.arange(lo, hi + BAND_STEP_M, BAND_STEP_M)
@@ -320,7 +319,7 @@ def band_kink(
         return None
     centres = 0.5 * (edges[filled] + edges[filled + 1])
     medians = np.array([np.median(dz[bins == b]) for b in filled])
-    t = _kink_in(centres, wire.points(centres)[:, 2] + medians, options, BAND_MIN_POINTS)
+    t = _kink_in(centres, wire.z_at(centres) + medians, options, BAND_MIN_POINTS)
     return None if t is None else (t, near)
 
 
