@@ -1161,6 +1161,7 @@ def _spans_of(scene: Scene, part: CorridorResult, options: ReconstructionOptions
         options.spans,
         options.wires,
         options.verify.crossing_offset,
+        options.trace.extend,
     )
 
 

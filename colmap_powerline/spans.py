@@ -627,7 +627,9 @@ def _continues(
 
 
 # Where a wire's line evidence stops: its curve read in pieces of EVIDENCE_PIECE_M every
-# EVIDENCE_STEP_M from EVIDENCE_SCAN_M before its measured end to as far past it.
+# EVIDENCE_STEP_M from EVIDENCE_SCAN_M before its measured end to as far past it, and
+# further in by as far as a round of tracing goes past an end (``traced_past``: that
+# round's points may all lie past the support, on ground texture near the curve).
 EVIDENCE_SCAN_M = 5.0
 EVIDENCE_STEP_M = 0.25
 EVIDENCE_PIECE_M = 1.0
@@ -641,12 +643,17 @@ EVIDENCE_QUANTILE = 0.75
 
 
 def _evidence_stops(
-    views: Sequence, wire: FittedWire, at_end: int, greys: dict[Path, np.ndarray]
+    views: Sequence,
+    wire: FittedWire,
+    at_end: int,
+    greys: dict[Path, np.ndarray],
+    traced_past: float,
 ) -> list[float]:
     """Where ``wire``'s line evidence stops near its end ``at_end`` (0: first, 1: last), in
     each view that shows it plainly before its end (:func:`_plain_before`): the distance
     along its plane past the measured end (negative: short of it). Its catenary is read
-    piece by piece from EVIDENCE_SCAN_M before the end outwards; a piece holds the wire as
+    piece by piece from EVIDENCE_SCAN_M + ``traced_past`` before the end outwards (tracing
+    may have carried the wire that far past its support); a piece holds the wire as
     :func:`_holds` says. The wire ends within the first piece of the split of the pieces
     into held (before) and not held (after) that most of them agree with, in its first half
     (where it covers less than half of that piece). A view whose pieces agree with no split
@@ -657,7 +664,8 @@ def _evidence_stops(
     end = lo if at_end == 0 else hi
     near, far = CONTINUATION_M
     before = wire.points(end - sign * np.linspace(near, far, 25))
-    starts = np.arange(-EVIDENCE_SCAN_M, EVIDENCE_SCAN_M + 1e-9, EVIDENCE_STEP_M)
+    scan_in = EVIDENCE_SCAN_M + traced_past
+    starts = np.arange(-scan_in, EVIDENCE_SCAN_M + 1e-9, EVIDENCE_STEP_M)
     pieces = [wire.points(end + sign * np.linspace(d, d + EVIDENCE_PIECE_M, 12)) for d in starts]
     stops: list[float] = []
     for v, grey, ref, _ in _plain_before(views, before, (), before[0], greys):
@@ -677,7 +685,7 @@ def _evidence_stops(
         k = 1 + int(best[len(best) // 2])
         if (agree.max() + len(held)) / (2 * len(held)) < MIN_EVIDENCE_AGREEMENT:
             continue
-        if starts[k] < -EVIDENCE_SCAN_M + 1.0:
+        if starts[k] < -scan_in + 1.0:
             continue
         stops.append(float(starts[k] + 0.5 * (EVIDENCE_PIECE_M - EVIDENCE_STEP_M)))
     return stops
@@ -920,6 +928,7 @@ def find_spans(
     options: SpanOptions | None = None,
     wires_options: WiresOptions | None = None,
     crossing_offset: float = 0.15,
+    traced_past: float = 5.0,
 ) -> Spans:
     """Find the supports, cut the wires at them, and say where each wire hangs.
 
@@ -932,6 +941,9 @@ def find_spans(
         pts_in_world: (N, 3) the points the wires' ``point_indices`` refer to.
         crossing_offset: views this far apart across a wire, per unit of their height
             above it, are at two positions (:class:`VerifyOptions`).
+        traced_past: how far a round of tracing goes past a wire's end
+            (:class:`TraceOptions` ``extend``): where a line ends, its wires' evidence
+            is looked for that far inside their measured ends too.
     """
     options = options or SpanOptions()
     wires_options = wires_options or WiresOptions()
@@ -947,7 +959,7 @@ def find_spans(
     found = _clustered(cands, len(axes), options)
     found = _not_run_through(found, work, axes, pts_in_world, options, wires_options)
     # 3. Wires ending together where the images see past them: the line ends there.
-    found += _line_ends(views, work, axes, found, options, crossing_offset)
+    found += _line_ends(views, work, axes, found, options, crossing_offset, traced_past)
     # 4. Every wire cut at each support of its leg that it runs across.
     _cut_at_supports(work, found, axes, pts_in_world, options, wires_options, max_across)
     # A piece cut off at a support may lie on the next span's wire of the same conductor
@@ -1148,6 +1160,7 @@ def _line_ends(
     found: list[_Found],
     options: SpanOptions,
     crossing_offset: float,
+    traced_past: float,
 ) -> list[_Found]:
     """Two or more wires ending together where the images see past them (and do not show
     them going on), away from the corridor's end and from the supports found: the line
@@ -1219,14 +1232,15 @@ def _line_ends(
                     )
                     continue
                 # Placed where the wires' line evidence ends in the views (the measurements
-                # stop short at the insulators' hardware or are carried on along the tower's
-                # members): the upper quartile of its stops outwards (EVIDENCE_QUANTILE);
-                # without three, where the measurements end (their median).
+                # stop short at the insulators' hardware, or are carried on along the
+                # tower's members or on ground texture near the curve): the upper quartile
+                # of its stops outwards (EVIDENCE_QUANTILE); without three, where the
+                # measurements end (their median).
                 at_u = []
                 for i in g:
                     w, which = out[idx[i]], at_end[i]
                     s_past = w.s_range[which] + (-1.0 if which == 0 else 1.0) * np.array(
-                        _evidence_stops(views, w, which, greys)
+                        _evidence_stops(views, w, which, greys, traced_past)
                     )
                     at_u += leg.u(w.points(s_past)[:, :2]).tolist()
                 if len(at_u) >= MIN_VIEWS_BEYOND:

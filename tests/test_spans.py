@@ -659,12 +659,14 @@ def test_a_line_s_end_seen_past_by_two_views_only(tmp_path, goes_on):
         assert abs(sp.supports[0].position[0] - 59.0) < 1.5
 
 
-@pytest.mark.parametrize("short_m", [2.0, -2.5])
+@pytest.mark.parametrize("short_m", [2.0, -2.5, -4.5])
 def test_a_line_s_end_is_placed_where_its_wires_line_evidence_stops(tmp_path, short_m):
     # The wires' measurements stop 2 m short of the terminal tower (its insulators'
     # hardware), or run 2.5 m past it (carried on its members: the shared mixed seed 3,
-    # 1.8 m). The images show the wires up to the tower at x = 60: the end support is
-    # placed there, not where the measurements end.
+    # 1.8 m), or 4.5 m past it (a round of tracing past the end took ground texture near
+    # the curve continued: the package's parallel layout, its first pole). The images show
+    # the wires up to the tower at x = 60: the end support is placed there, not where the
+    # measurements end.
     rng = np.random.default_rng(11)
     places = [(56.0, -8.0), (56.0, 8.0), (62.0, 0.0)]
     views = _drawn_views(tmp_path, _terminal_curves({}), places, rng)
