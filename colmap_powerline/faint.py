@@ -231,10 +231,12 @@ def _view(
     corners: F64,
     detect: DetectOptions,
     coarse: bool,
+    grey_image: F32 | None = None,
 ) -> _View | None:
     """The view's normalised line response over the region the swept hypotheses cover
     (``coarse``: its extremes within half a coarse step, else within a pixel), or None where
-    it sees fewer than ``MIN_VIEW_SAMPLES`` of the line's longest wire's samples."""
+    it sees fewer than ``MIN_VIEW_SAMPLES`` of the line's longest wire's samples.
+    ``grey_image``: the view's grey image, where it was read already."""
     s = np.linspace(*ref.s_range, NUM_SAMPLES)
     uv, depth, inside = image.project(ref.points(s))
     if inside.sum() < MIN_VIEW_SAMPLES:
@@ -250,7 +252,9 @@ def _view(
     y1 = min(int(q[:, 1].max()) + pad, image.height)
     if x1 - x0 < 2 * pad or y1 - y0 < 2 * pad:
         return None
-    grey = _to_gray(read_image(image.path, cv2.IMREAD_GRAYSCALE))[y0:y1, x0:x1]
+    if grey_image is None:
+        grey_image = _to_gray(read_image(image.path, cv2.IMREAD_GRAYSCALE))
+    grey = grey_image[y0:y1, x0:x1]
     d = uv[inside][-1] - uv[inside][0]  # the wire's direction in the view
     response = line_response(grey, float(np.degrees(np.arctan2(d[1], d[0]))), detect)
     win = detect.contrast_window_px
@@ -521,3 +525,276 @@ def _sweep(
             int(n_views[i, j, k]),
         )
     return out, decoded
+
+
+# --- Stretches of a known wire that no single view shows -----------------------------------
+#
+# Tracing measures a place where three views or more each find the wire; a wire at 2-3 sd
+# per metre in each view (the package's `angle` layout's 20 mm shields over vegetation) is
+# found at some places and not at the next. Along a span-wire's curve the views' line
+# evidence summed over a stretch still stands out of its surroundings where tracing found
+# nothing: on that layout's shields, 4-6.7 robust sd over 2 m in 4-5 views along 12-16 m
+# past where tracing stopped, the curve continued lying within 0.02-0.08 m of the wire.
+# So each unmeasured stretch between a span-wire's attachments, next to a measured one, is
+# judged by that evidence, at the curve against the offsets around it.
+STRETCH_M = 2.0  # model units
+STRETCH_SAMPLES = 20
+# The curve's neighbourhood (the wire within it) and the offsets that are its background.
+NEAR_M = 0.15
+FAR_M = 0.35
+# The offsets scored: every STEP_ACROSS out to 1.5 across and 1.0 up, and within NEAR_M
+# every FINE_STEP (the peak's place: a pixel is 2-5 cm at the half-scale GSD).
+FINE_STEP = 0.025
+
+
+def _offsets(reach: float) -> F64:
+    coarse = np.arange(np.ceil((NEAR_M + 1e-9) / STEP_ACROSS), round(reach / STEP_ACROSS) + 1)
+    fine = np.arange(-round(NEAR_M / FINE_STEP), round(NEAR_M / FINE_STEP) + 1) * FINE_STEP
+    return np.round(np.r_[-coarse[::-1] * STEP_ACROSS, fine, coarse * STEP_ACROSS], 6)
+
+
+OFFSETS_ACROSS = _offsets(1.5)
+OFFSETS_UP = _offsets(1.0)
+# Stretches this close to a wire's attachment are left alone (its insulator, the support's
+# members: past a tower the same evidence runs on along the members).
+ATTACHMENT_MARGIN_M = 1.0
+
+
+@dataclass(frozen=True)
+class _Stretches:
+    """One wire's stretches: the samples' positions along it, which stretches its points
+    measure, and every offset's samples (A, U, M, 3)."""
+
+    s: F64  # (M,) the samples along the wire, STRETCH_SAMPLES per stretch
+    measured: npt.NDArray[np.bool_]  # (B,)
+    points: F64  # (A, U, M, 3)
+
+
+def _stretches(wire: FittedWire, pts_in_world: F64) -> _Stretches | None:
+    """The wire's stretches between its attachments (ATTACHMENT_MARGIN_M inside), or None
+    where none lies unmeasured next to a measured one. A stretch is measured where its
+    points cover half of its tenths."""
+    lo, hi = wire.s_range[0] + ATTACHMENT_MARGIN_M, wire.s_range[1] - ATTACHMENT_MARGIN_M
+    n = int((hi - lo) // STRETCH_M)
+    if n < 2 or len(wire.point_indices) == 0:
+        return None
+    step = STRETCH_M / STRETCH_SAMPLES
+    s = lo + (np.arange(n * STRETCH_SAMPLES) + 0.5) * step
+    own = wire.plane_coords(pts_in_world[wire.point_indices])[0]
+    cell = np.floor((own - lo) / step).astype(np.int64)
+    held = np.zeros(n * STRETCH_SAMPLES, bool)
+    held[cell[(cell >= 0) & (cell < len(held))]] = True
+    measured = held.reshape(n, STRETCH_SAMPLES).mean(axis=1) >= 0.5
+    if measured.all() or not measured.any():
+        return None
+    normal = across_of(wire.plane_direction_xy)
+    offsets = np.zeros((len(OFFSETS_ACROSS), len(OFFSETS_UP), 3))
+    offsets[..., :2] = OFFSETS_ACROSS[:, None, None] * normal
+    offsets[..., 2] = OFFSETS_UP[None, :]
+    return _Stretches(s, measured, wire.points(s)[None, None] + offsets[:, :, None, :])
+
+
+def _stretch_scores(
+    image: SceneImage,
+    grey: F32,
+    wire: FittedWire,
+    others: Sequence[FittedWire],
+    st: _Stretches,
+    detect: DetectOptions,
+) -> tuple[F64, F64, F64] | None:
+    """One view's sums over each stretch's samples at every offset, bright and dark
+    (2, A, U, B), how many it sees unmasked (A, U, B), and whether it sees the curve's
+    (B,): at least half of a stretch's samples; None where it sees too little of it."""
+    a, u, m = st.points.shape[:3]
+    n = len(st.measured)
+    corners = st.points[[0, -1]][:, [0, -1]].reshape(-1, 3)
+    ref = dataclasses.replace(wire, s_range=(float(st.s[0]), float(st.s[-1])))
+    view = _view(image, ref, others, corners, detect, coarse=False, grey_image=grey)
+    if view is None:
+        return None
+    uv, _, ok = image.project(st.points.reshape(-1, 3))
+    h, w = view.maps[0].shape
+    x = (uv[:, 0] - view.x0).astype(np.float32)
+    y = (uv[:, 1] - view.y0).astype(np.float32)
+    ok &= np.isfinite(x) & np.isfinite(y) & (x >= 0) & (y >= 0) & (x <= w - 1) & (y <= h - 1)
+    x, y = np.where(ok, x, 0.0).astype(np.float32), np.where(ok, y, 0.0).astype(np.float32)
+    sums = np.zeros((2, a, u, n))
+    count = np.zeros((a, u, n))
+    for p, image_map in enumerate(view.maps):
+        v = _remap(image_map, x.reshape(-1, STRETCH_SAMPLES), y.reshape(-1, STRETCH_SAMPLES))
+        v = np.where(ok.reshape(v.shape), v, np.nan).reshape(a, u, n, STRETCH_SAMPLES)
+        seen = np.isfinite(v)
+        sums[p] = np.where(seen, v, 0.0).sum(axis=-1)
+        count = seen.sum(axis=-1)
+    sees = count[a // 2, u // 2] >= STRETCH_SAMPLES // 2
+    return sums, count, sees.astype(np.float64)
+
+
+def _z_scores(mean: F64) -> tuple[F64, npt.NDArray[np.int64], F64]:
+    """(B,) each stretch's evidence at the curve: the highest mean response within NEAR_M of
+    it, less the median of the offsets FAR_M or more from it, in their robust standard
+    deviations (0 where a higher one lies just outside, within FAR_M: the wire runs beside
+    the curve there, and what lies within NEAR_M is the flank of its peak); (B, 2) where in
+    (A, U) that highest lies; and (B,) the evidence on the curve itself, likewise."""
+
+    def within(r: float) -> npt.NDArray[np.bool_]:
+        return (np.abs(OFFSETS_ACROSS)[:, None] <= r + 1e-9) & (
+            np.abs(OFFSETS_UP)[None, :] <= r + 1e-9
+        )
+
+    near, around = within(NEAR_M), within(FAR_M)
+    far = (np.abs(OFFSETS_ACROSS)[:, None] >= FAR_M - 1e-9) | (
+        np.abs(OFFSETS_UP)[None, :] >= FAR_M - 1e-9
+    )
+    n = mean.shape[-1]
+    z = np.zeros(n)
+    on = np.zeros(n)
+    at = np.zeros((n, 2), np.int64)
+    centre = (int(np.argmin(np.abs(OFFSETS_ACROSS))), int(np.argmin(np.abs(OFFSETS_UP))))
+    for b in range(n):
+        m = mean[:, :, b]
+        bg = m[far]
+        med = float(np.median(bg))
+        mad = 1.4826 * float(np.median(np.abs(bg - med))) + 1e-9
+        best = np.where(near, m, -np.inf)
+        at[b] = np.unravel_index(int(np.argmax(best)), m.shape)
+        on[b] = (float(m[centre]) - med) / mad
+        if np.max(np.where(around & ~near, m, -np.inf)) > best[tuple(at[b])]:
+            continue
+        z[b] = (float(best[tuple(at[b])]) - med) / mad
+    return z, at, on
+
+
+def evidence_stretches(
+    scene: Scene,
+    wires: Sequence[FittedWire],
+    pts_in_world: F64,
+    detect: DetectOptions,
+    min_z: float,
+    min_views: int,
+    num_threads: int,
+) -> tuple[list[F64], list[npt.NDArray[np.int32]], list[Path]]:
+    """Per wire, the points (N, 3) the views' summed line evidence measures along its
+    unmeasured stretches between its attachments, and how many views see each (N,); and
+    the images read.
+
+    Each stretch (STRETCH_M) of a span-wire is scored in every view that sees it, the other
+    wires' images masked: the normalised line response summed over its samples at the wire's
+    curve and at offsets around it (OFFSETS_ACROSS, OFFSETS_UP), over the views together
+    (:func:`_z_scores`, of the wire's polarity where it is measured). An unmeasured stretch
+    is taken where its evidence is ``min_z`` or more in ``min_views`` views or more, next to
+    a measured stretch or a stretch so taken (from its measured stretches on, one after
+    another: a stretch on its own says little). Its points lie on the curve moved to the
+    evidence's peak near it (a parabola through the peak and its neighbours, within
+    NEAR_M), as densely as the wire's own points."""
+    plans = [_stretches(w, pts_in_world) for w in wires]
+    todo = [k for k, p in enumerate(plans) if p is not None]
+    pts_out: list[F64] = [np.zeros((0, 3)) for _ in wires]
+    views_out: list[npt.NDArray[np.int32]] = [np.zeros(0, np.int32) for _ in wires]
+    if not todo:
+        return pts_out, views_out, []
+
+    def one(image: SceneImage) -> dict[int, tuple[F64, F64, F64]]:
+        grey: F32 | None = None
+        out: dict[int, tuple[F64, F64, F64]] = {}
+        for k in todo:
+            st = plans[k]
+            assert st is not None
+            _, _, ok = image.project(st.points[st.points.shape[0] // 2, st.points.shape[1] // 2])
+            if ok.sum() < MIN_VIEW_SAMPLES:
+                continue
+            if grey is None:
+                grey = _to_gray(read_image(image.path, cv2.IMREAD_GRAYSCALE))
+            others = [w for j, w in enumerate(wires) if j != k]
+            res = _stretch_scores(image, grey, wires[k], others, st, detect)
+            if res is not None:
+                out[k] = res
+        return out
+
+    totals: dict[int, list[F64]] = {}
+    decoded: list[Path] = []
+    with ThreadPoolExecutor(max_workers=num_threads) as pool:
+        for image, res in zip(scene.images, pool.map(one, scene.images), strict=True):
+            if res:
+                decoded.append(image.path)
+            for k, (sums, count, sees) in res.items():
+                if k not in totals:
+                    totals[k] = [np.zeros_like(sums), np.zeros_like(count), np.zeros_like(sees)]
+                totals[k][0] += sums
+                totals[k][1] += count
+                totals[k][2] += sees
+    for k, (sums, count, views) in totals.items():
+        st = plans[k]
+        assert st is not None
+        mean = sums / np.maximum(count, 1)[None]
+        scored = [_z_scores(sign * mean[p]) for p, sign in ((0, 1.0), (1, -1.0))]
+        # The wire's polarity: its evidence where it is measured.
+        p = int(np.argmax([np.median(z[st.measured]) for z, _, _ in scored]))
+        z, at, on = scored[p]
+        good = (z >= min_z) & (views >= min_views)
+        taken = np.zeros(len(z), bool)
+        for b in np.flatnonzero(st.measured):
+            for step in (-1, 1):
+                c = b + step
+                while 0 <= c < len(z) and not st.measured[c] and good[c]:
+                    taken[c] = True
+                    c += step
+        if not taken.any():
+            continue
+        spacing = _spacing(wires[k], pts_in_world)
+        new, seen = [], []
+        for b in np.flatnonzero(taken):
+            # On the curve, unless the peak beside it stands a robust sd higher (views
+            # overhead hardly tell heights apart: their evidence is flat along "up").
+            da, du = (
+                _peak(((1.0 if p == 0 else -1.0) * mean[p, :, :, b]), at[b])
+                if z[b] - on[b] >= 1.0
+                else (0.0, 0.0)
+            )
+            s = np.arange(st.s[b * STRETCH_SAMPLES] - 0.5 * STRETCH_M / STRETCH_SAMPLES,
+                          st.s[(b + 1) * STRETCH_SAMPLES - 1], spacing)  # fmt: skip
+            q = wires[k].points(s)
+            q[:, :2] += da * across_of(wires[k].plane_direction_xy)
+            q[:, 2] += du
+            new.append(q)
+            seen.append(np.full(len(q), int(views[b]), np.int32))
+        pts_out[k] = np.concatenate(new)
+        views_out[k] = np.concatenate(seen)
+        logger.info(
+            "evidence: wire %d: %d of its %d unmeasured %.0f m stretches measured by the "
+            "views' line evidence together (%.1f-%.1f sd, %d-%d views)",
+            wires[k].wire_id,
+            int(taken.sum()),
+            int((~st.measured).sum()),
+            STRETCH_M,
+            float(z[taken].min()),
+            float(z[taken].max()),
+            int(views[taken].min()),
+            int(views[taken].max()),
+        )
+    return pts_out, views_out, decoded
+
+
+def _spacing(wire: FittedWire, pts_in_world: F64) -> float:
+    """The median spacing of the wire's own points along it (bounded to a few per tenth)."""
+    own = np.sort(wire.plane_coords(pts_in_world[wire.point_indices])[0])
+    d = np.diff(own)
+    d = d[d > 0]
+    return float(np.clip(np.median(d) if len(d) else 0.05, 0.02, 0.1))
+
+
+def _peak(m: F64, at: npt.NDArray[np.int64]) -> tuple[float, float]:
+    """The offset (across, up) of the evidence's peak at cell ``at`` of ``m`` (A, U),
+    refined by a parabola through it and its neighbours in each direction (FINE_STEP
+    apart), within NEAR_M."""
+
+    def vertex(lo: float, mid: float, hi: float) -> float:
+        den = lo - 2.0 * mid + hi
+        if den >= 0 or not np.isfinite(den):
+            return 0.0
+        return float(np.clip(0.5 * (lo - hi) / den, -0.5, 0.5))
+
+    i, j = int(at[0]), int(at[1])
+    da = OFFSETS_ACROSS[i] + FINE_STEP * vertex(m[i - 1, j], m[i, j], m[i + 1, j])
+    du = OFFSETS_UP[j] + FINE_STEP * vertex(m[i, j - 1], m[i, j], m[i, j + 1])
+    return float(np.clip(da, -NEAR_M, NEAR_M)), float(np.clip(du, -NEAR_M, NEAR_M))

@@ -27,7 +27,7 @@ from .dense import dense_ground, fill, open_ply
 from .detect import DetectOptions, WireMask, detect_wires
 from .errors import InputError, PairGeometryError
 from .export import export_results
-from .faint import faint_hypotheses
+from .faint import evidence_stretches, faint_hypotheses
 from .files import wire_colors
 from .geometry import (
     across_of,
@@ -73,7 +73,7 @@ from .support import (
 )
 from .swaps import swapped_pairings
 from .tasks import ExecutionOptions, Store, Tasks, digest, run_key, tasks_for
-from .trace import MIN_REDUNDANCY, MIN_TRACED_SHARE, TraceOptions, trace_wires
+from .trace import MIN_REDUNDANCY, MIN_TRACED_SHARE, MIN_VIEWS, TraceOptions, trace_wires
 from .triangulate import Primitives, triangulate_pair, wire_centres
 from .verify import VerifiedPoints, WireMaskFn, verify_primitives
 from .wires import (
@@ -823,6 +823,10 @@ def reconstruct(
     supports = [supports[k] for k in spans.source]
     t0 = time.perf_counter()
     wires, verified, dec = _traced_to_supports(spans, part.corridors, verified, scene, options)
+    decoded += dec
+    wires, verified, dec = _measured_by_evidence(
+        wires, part.corridors, spans, verified, scene, options
+    )
     decoded += dec
     timings["trace_to_supports"] = time.perf_counter() - t0
     labels = np.full(len(verified), -1, np.int64)
@@ -1597,6 +1601,51 @@ def _traced_to_supports(
                 len(new),
             )
     return wires, verified, decoded
+
+
+def _measured_by_evidence(
+    wires: list[FittedWire],
+    corridors: Sequence[WireCorridor],
+    spans: Spans,
+    verified: VerifiedPoints,
+    scene: Scene,
+    options: ReconstructionOptions,
+) -> tuple[list[FittedWire], VerifiedPoints, list[Path]]:
+    """The span wires with their unmeasured stretches next to measured ones measured where
+    the views' line evidence together shows them (:func:`evidence_stretches`: a wire too
+    faint for tracing's views one by one, the package's `angle` layout's shields), each
+    refitted to its points and still drawn to its attachments.
+
+    Returns the wires, the points with those added (as traced points: the views that see
+    each stretch), and the images read."""
+    if not options.trace.enabled or not options.trace.faint or not wires:
+        return wires, verified, []
+    new, views, decoded = evidence_stretches(
+        scene,
+        wires,
+        verified.pts_in_world,
+        options.detect,
+        options.trace.stretch_min_z,
+        MIN_VIEWS,
+        options.verify.num_threads,
+    )
+    if not any(len(p) for p in new):
+        return wires, verified, decoded
+    n0 = len(verified)
+    verified = verified.with_traced(np.concatenate(new), np.concatenate(views))
+    legs = spans.legs or [0] * len(wires)
+    start = n0
+    out = list(wires)
+    for k, p in enumerate(new):
+        if len(p) == 0:
+            continue
+        idx = np.r_[wires[k].point_indices, np.arange(start, start + len(p))]
+        start += len(p)
+        along, _ = plan_axes(corridors[legs[k]].azimuth_deg)
+        fit = refit(wires[k], verified.pts_in_world, idx, along, options.wires)
+        drawn = np.sort(fit.plane_coords(wires[k].points(np.array(wires[k].s_range)))[0])
+        out[k] = dataclasses.replace(fit, s_range=(float(drawn[0]), float(drawn[1])))
+    return out, verified, decoded
 
 
 def _own_spacing(wire: FittedWire, pts_in_world: F64) -> tuple[F64, float]:

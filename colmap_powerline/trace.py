@@ -153,6 +153,10 @@ class TraceOptions:
     # detector, by the line evidence of all views together (colmap_powerline.faint)
     faint_min_z: float = 6.0  # a hypothesis of the sweep is traced where its evidence is
     # this many of the sweep's robust standard deviations
+    stretch_min_z: float = 4.0  # a span-wire's unmeasured stretch next to a measured one is
+    # measured where the views' line evidence together stands this many robust standard
+    # deviations out of the offsets around it (colmap_powerline.faint.evidence_stretches;
+    # with ``faint``)
 
     LIMITS: ClassVar[dict[str, str]] = {
         "step_px": "> 0",
@@ -160,6 +164,7 @@ class TraceOptions:
         "extend": ">= 0",
         "max_rounds": ">= 0",
         "faint_min_z": ">= 3",
+        "stretch_min_z": ">= 3",
     }
 
     def __post_init__(self) -> None:

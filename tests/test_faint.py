@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import cv2
 import numpy as np
 import pycolmap
@@ -9,7 +11,12 @@ import pytest
 
 from colmap_powerline.detect import DetectOptions, detect_wires
 from colmap_powerline.evaluate import distance_to_polyline
-from colmap_powerline.faint import FaintHypothesis, faint_hypotheses, sweep_refs
+from colmap_powerline.faint import (
+    FaintHypothesis,
+    evidence_stretches,
+    faint_hypotheses,
+    sweep_refs,
+)
 from colmap_powerline.scene import Scene, SceneImage
 from colmap_powerline.wires import FittedWire
 
@@ -149,3 +156,29 @@ def test_remap_takes_any_number_of_rows():
     np.testing.assert_allclose(
         _remap(image, x, y), map_coordinates(image, [y, x], order=1), atol=1e-5
     )
+
+
+def _measured_to(wire: FittedWire, x_end: float) -> tuple[FittedWire, np.ndarray]:
+    """The wire with points every 5 cm from x = -19 to ``x_end`` (what tracing measured)."""
+    pts = wire.points(np.arange(-19.0, x_end, 0.05))
+    return dataclasses.replace(wire, point_indices=np.arange(len(pts))), pts
+
+
+@pytest.mark.parametrize("drawn_to", [8.0, -6.0])
+def test_a_span_wire_s_stretches_the_views_show_only_together_are_measured(tmp_path, drawn_to):
+    """A span-wire (x = -20..20) measured along x = -19..-6, drawn in the images from
+    x = -20 to ``drawn_to`` at half the image noise: the detector marks few of its pixels.
+    Where it is drawn, the views' evidence together measures its stretches on from the
+    measured ones, within a few centimetres; where it is not, nothing is taken."""
+    wire = _wire(0, 0.0, 24.0, 0.8)
+    scene = _scene(tmp_path, [(dataclasses.replace(wire, s_range=(-20.0, drawn_to)), 4.0)])
+    measured, pts = _measured_to(wire, -6.0)
+    new, views, decoded = evidence_stretches(scene, [measured], pts, DetectOptions(), 4.0, 3, 1)
+    assert len(decoded) == 15
+    if drawn_to < 0:
+        assert len(new[0]) == 0
+        return
+    s = measured.plane_coords(new[0])[0]
+    assert s.min() > -6.5 and 4.0 < s.max() < drawn_to + 2.0
+    assert np.median(distance_to_polyline(new[0], wire.polyline(0.02))) < 0.05
+    assert (views[0] >= 3).all()
