@@ -619,13 +619,14 @@ def _stretch_scores(
     ok &= np.isfinite(x) & np.isfinite(y) & (x >= 0) & (y >= 0) & (x <= w - 1) & (y <= h - 1)
     x, y = np.where(ok, x, 0.0).astype(np.float32), np.where(ok, y, 0.0).astype(np.float32)
     sums = np.zeros((2, a, u, n))
-    count = np.zeros((a, u, n))
+    seen = np.zeros(0, bool)  # both maps are masked alike: counted from the first
     for p, image_map in enumerate(view.maps):
         v = _remap(image_map, x.reshape(-1, STRETCH_SAMPLES), y.reshape(-1, STRETCH_SAMPLES))
         v = np.where(ok.reshape(v.shape), v, np.nan).reshape(a, u, n, STRETCH_SAMPLES)
-        seen = np.isfinite(v)
+        if p == 0:
+            seen = np.isfinite(v)
         sums[p] = np.where(seen, v, 0.0).sum(axis=-1)
-        count = seen.sum(axis=-1)
+    count = seen.sum(axis=-1).astype(np.float64)
     sees = count[a // 2, u // 2] >= STRETCH_SAMPLES // 2
     return sums, count, sees.astype(np.float64)
 
