@@ -63,7 +63,7 @@ from .results import (
 )
 from .scene import Scene, SceneImage, load_scene, read_image, resolve_inputs
 from .sfm import run_sfm
-from .spans import LineSupport, Spans, WireSpan, find_spans
+from .spans import LineSupport, Spans, WireSpan, attached_again, find_spans
 from .support import (
     WireSupport,
     height_above_ground,
@@ -881,7 +881,9 @@ def reconstruct(
         ground, source = dense_ground(open_ply(outputs.dense_path)), "dense cloud"
     measures = [measure_wire(w, ground, source, options.min_clearance_m) for w in wires]
     assign_kinds(measures, spans=[(p.line, p.span) for p in spans.placement])
-    line_supports = _tops_from(spans.supports, wires, measures, spans.placement)
+    line_supports = _tops_from(
+        attached_again(spans.supports, wires, spans.placement), wires, measures, spans.placement
+    )
     timings["clearance"] = time.perf_counter() - t0
     result = ReconstructionResult(
         scene,

@@ -478,6 +478,35 @@ def test_a_support_topped_by_a_conductor_where_the_line_has_shields_stands_as_th
     assert len(said) == 1 and said[0].startswith("support 2 (line 1)")
 
 
+def test_a_support_s_top_is_read_from_its_wires_as_they_are_drawn_at_the_end():
+    """The wires are traced on and refitted after the supports are found: each support's
+    top, top wire, wires and reach are read again from the wires' ends at it as they are
+    drawn then (a shield's curve fitted to a short piece and continued to the support put
+    the package's `angle` layout's towers 8 m high)."""
+    from colmap_powerline.spans import WireSpan, attached_again
+
+    def wire(i: int, x0: float, x1: float, z: float) -> FittedWire:
+        # along x from x0 to x1, all but straight at height z
+        return FittedWire(i, np.zeros(2), np.array([1.0, 0.0]), 1e6, 50.0, z, (x0, x1),
+                          np.zeros(0, np.int64), 0.0)  # fmt: skip
+
+    def sup(i: int, x: float, top: float) -> LineSupport:
+        return LineSupport(i, 1, "end", np.array([x, 0.0, 0.0]), top, 0.0, (), "wires ending",
+                           top_wire=9)  # fmt: skip
+
+    wires = [wire(0, 0.0, 100.0, 20.0), wire(1, 0.0, 100.0, 28.0), wire(2, 0.0, 40.0, 36.5)]
+    placement = [WireSpan(1, 1, (0, 1), 0), WireSpan(1, 1, (0, 1), 1), WireSpan(1, 1, (0, None), 2)]
+    stale = [sup(0, 0.0, 44.8), sup(1, 100.0, 51.2)]
+    out = attached_again(stale, wires, placement)
+    z = [float(w.points(np.array([w.s_range[0]]))[0, 2]) for w in wires]
+    assert out[0].top_z == pytest.approx(max(z), abs=1e-6) and out[0].top_wire == 2
+    assert out[0].wire_ids == (0, 1, 2)
+    z1 = [float(w.points(np.array([w.s_range[1]]))[0, 2]) for w in wires[:2]]
+    assert out[1].top_z == pytest.approx(max(z1), abs=1e-6) and out[1].top_wire == 1
+    assert out[1].wire_ids == (0, 1) and out[1].reach_m == pytest.approx(0.0, abs=1e-6)
+    assert stale[0].top_z == 44.8  # the caller's supports are not changed
+
+
 def _drawn_views(tmp_path, truth: list[np.ndarray], places, rng) -> list:
     """Nadir views 50 m up at ``places`` (x, y), 90° across (a pixel is 8 cm at 25 m), of
     noisy grey ground with the ``truth`` curves (dense 3D points) drawn a pixel wide."""
