@@ -47,7 +47,7 @@ from __future__ import annotations
 
 import dataclasses
 import logging
-from collections.abc import Sequence
+from collections.abc import Collection, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
@@ -660,7 +660,7 @@ def _z_scores(mean: F64) -> tuple[F64, npt.NDArray[np.int64], F64]:
         best = np.where(near, m, -np.inf)
         at[b] = np.unravel_index(int(np.argmax(best)), m.shape)
         on[b] = (float(m[centre]) - med) / mad
-        if np.max(np.where(around & ~near, m, -np.inf)) > best[tuple(at[b])]:
+        if np.max(np.where(around & ~near, m, -np.inf)) > best[tuple(at[b])] + mad:
             continue
         z[b] = (float(best[tuple(at[b])]) - med) / mad
     return z, at, on
@@ -674,6 +674,7 @@ def evidence_stretches(
     min_z: float,
     min_views: int,
     num_threads: int,
+    only: Collection[int] | None = None,
 ) -> tuple[list[F64], list[npt.NDArray[np.int32]], list[Path]]:
     """Per wire, the points (N, 3) the views' summed line evidence measures along its
     unmeasured stretches between its attachments, and how many views see each (N,); and
@@ -687,8 +688,12 @@ def evidence_stretches(
     a measured stretch or a stretch so taken (from its measured stretches on, one after
     another: a stretch on its own says little). Its points lie on the curve moved to the
     evidence's peak near it (a parabola through the peak and its neighbours, within
-    NEAR_M), as densely as the wire's own points."""
-    plans = [_stretches(w, pts_in_world) for w in wires]
+    NEAR_M), as densely as the wire's own points. ``only``: the indices of the wires
+    judged (all by default; the others' images are masked all the same)."""
+    plans = [
+        _stretches(w, pts_in_world) if only is None or k in only else None
+        for k, w in enumerate(wires)
+    ]
     todo = [k for k, p in enumerate(plans) if p is not None]
     pts_out: list[F64] = [np.zeros((0, 3)) for _ in wires]
     views_out: list[npt.NDArray[np.int32]] = [np.zeros(0, np.int32) for _ in wires]

@@ -1605,6 +1605,11 @@ def _traced_to_supports(
     return wires, verified, decoded
 
 
+# At most this many rounds of judging span-wires' unmeasured stretches by the views' line
+# evidence together, each on the curves refitted to what the round before measured.
+EVIDENCE_ROUNDS = 4
+
+
 def _measured_by_evidence(
     wires: list[FittedWire],
     corridors: Sequence[WireCorridor],
@@ -1616,37 +1621,44 @@ def _measured_by_evidence(
     """The span wires with their unmeasured stretches next to measured ones measured where
     the views' line evidence together shows them (:func:`evidence_stretches`: a wire too
     faint for tracing's views one by one, the package's `angle` layout's shields), each
-    refitted to its points and still drawn to its attachments.
+    refitted to its points and still drawn to its attachments. In rounds (at most
+    EVIDENCE_ROUNDS): a wire that gained stretches is judged again on its refitted curve,
+    which lies closer to the wire past what it was fitted to before.
 
     Returns the wires, the points with those added (as traced points: the views that see
     each stretch), and the images read."""
     if not options.trace.enabled or not options.trace.faint or not wires:
         return wires, verified, []
-    new, views, decoded = evidence_stretches(
-        scene,
-        wires,
-        verified.pts_in_world,
-        options.detect,
-        options.trace.stretch_min_z,
-        MIN_VIEWS,
-        options.verify.num_threads,
-    )
-    if not any(len(p) for p in new):
-        return wires, verified, decoded
-    n0 = len(verified)
-    verified = verified.with_traced(np.concatenate(new), np.concatenate(views))
     legs = spans.legs or [0] * len(wires)
-    start = n0
     out = list(wires)
-    for k, p in enumerate(new):
-        if len(p) == 0:
-            continue
-        idx = np.r_[wires[k].point_indices, np.arange(start, start + len(p))]
-        start += len(p)
-        along, _ = plan_axes(corridors[legs[k]].azimuth_deg)
-        fit = refit(wires[k], verified.pts_in_world, idx, along, options.wires)
-        drawn = np.sort(fit.plane_coords(wires[k].points(np.array(wires[k].s_range)))[0])
-        out[k] = dataclasses.replace(fit, s_range=(float(drawn[0]), float(drawn[1])))
+    decoded: list[Path] = []
+    todo: set[int] = set(range(len(wires)))
+    for _ in range(EVIDENCE_ROUNDS):
+        new, views, dec = evidence_stretches(
+            scene,
+            out,
+            verified.pts_in_world,
+            options.detect,
+            options.trace.stretch_min_z,
+            MIN_VIEWS,
+            options.verify.num_threads,
+            only=todo,
+        )
+        decoded += [p for p in dec if p not in decoded]
+        todo = {k for k, p in enumerate(new) if len(p)}
+        if not todo:
+            break
+        start = len(verified)
+        verified = verified.with_traced(np.concatenate(new), np.concatenate(views))
+        for k, p in enumerate(new):
+            if len(p) == 0:
+                continue
+            idx = np.r_[out[k].point_indices, np.arange(start, start + len(p))]
+            start += len(p)
+            along, _ = plan_axes(corridors[legs[k]].azimuth_deg)
+            fit = refit(out[k], verified.pts_in_world, idx, along, options.wires)
+            drawn = np.sort(fit.plane_coords(out[k].points(np.array(out[k].s_range)))[0])
+            out[k] = dataclasses.replace(fit, s_range=(float(drawn[0]), float(drawn[1])))
     return out, verified, decoded
 
 

@@ -1502,9 +1502,15 @@ def _placed(
         if junction[mi]
         for li in merged[mi][0]
     }
-    placement: list[WireSpan] = []
-    attached: dict[int, list[tuple[int, F64]]] = {}
+    # Each wire's span (its line, and how many of the line's supports lie before its
+    # middle), the supports on either side of it, and those its measured ends reach (within
+    # ``max_meeting_gap``). A wire that reaches one of its span's supports hangs from the
+    # other too where the span's other wires reach it (the package's `angle` layout: its
+    # 20 mm shields measured along half their spans from the angle tower).
     spans_key: list[tuple[int, int]] = []
+    sides: list[tuple[int | None, int | None]] = []
+    own: list[list[int]] = []
+    reached: dict[tuple[int, int], set[int]] = {}
     for k, w in enumerate(out):
         li = out_legs[k]
         line = line_ids[int(line_of_leg[li])]
@@ -1518,12 +1524,23 @@ def _placed(
         mid = 0.5 * (ch[0] + ch[1])
         before = [(c, i) for c, i in on_line if c <= mid]
         after = [(c, i) for c, i in on_line if c > mid]
-        bounds = []
+        key = (line, len(before))
+        spans_key.append(key)
+        sides.append((max(before)[1] if before else None, min(after)[1] if after else None))
+        own.append([])
         if before and ch[0] - max(before)[0] <= options.max_meeting_gap:
-            bounds.append(max(before)[1])
+            own[-1].append(max(before)[1])
         if after and min(after)[0] - ch[1] <= options.max_meeting_gap:
-            bounds.append(min(after)[1])
-        spans_key.append((line, len(before)))
+            own[-1].append(min(after)[1])
+        reached.setdefault(key, set()).update(own[-1])
+    placement: list[WireSpan] = []
+    attached: dict[int, list[tuple[int, F64]]] = {}
+    for k, w in enumerate(out):
+        li = out_legs[k]
+        line = line_ids[int(line_of_leg[li])]
+        bounds = own[k]
+        if len(bounds) == 1:  # the span's other support, where its other wires reach it
+            bounds = [sid for sid in sides[k] if sid in reached[spans_key[k]]]
         # Extended to each support, or cut back to it: past its attachment (by less than
         # ``support_radius``, else the wire was cut there) a curve is the next span's, and
         # so are its points there (on the road flight, span 3's road-side conductor held

@@ -182,3 +182,31 @@ def test_a_span_wire_s_stretches_the_views_show_only_together_are_measured(tmp_p
     assert s.min() > -6.5 and 4.0 < s.max() < drawn_to + 2.0
     assert np.median(distance_to_polyline(new[0], wire.polyline(0.02))) < 0.05
     assert (views[0] >= 3).all()
+
+
+@pytest.mark.parametrize("beside_m", [0.18, 0.3])
+def test_a_stretch_whose_wire_runs_beside_the_curve_is_measured_on_the_wire_or_not(
+    tmp_path, beside_m
+):
+    """From x = -6 on, the wire the images show runs ``beside_m`` beside the span-wire's
+    curve (where the curve, continued, misses it). Whatever is taken there lies on the wire
+    the images show (its peak within 15 cm of the curve), not on the curve; where the wire
+    lies farther out, a higher peak just outside vetoes the stretch."""
+    wire = _wire(0, 0.0, 24.0, 0.8)
+    beside = _wire(0, beside_m, 24.0, 0.8)
+    drawn = [
+        (dataclasses.replace(wire, s_range=(-20.0, -6.0)), 4.0),
+        (dataclasses.replace(beside, s_range=(-6.0, 8.0)), 4.0),
+    ]
+    scene = _scene(tmp_path, drawn)
+    measured, pts = _measured_to(wire, -6.0)
+    new, _, _ = evidence_stretches(scene, [measured], pts, DetectOptions(), 4.0, 3, 1)
+    s = measured.plane_coords(new[0])[0]
+    assert len(s) == 0 or s.max() < 8.0 + 2.0  # the stretch at the drawn end, at most
+    past = new[0][(s > -5.0) & (s < 7.0)]
+    if len(past):
+        shown = [w.polyline(0.02) for w, _ in drawn]
+        d = np.min([distance_to_polyline(past, c) for c in shown], axis=0)
+        assert np.median(d) < 0.06 and d.max() < 0.1  # 18 cm beside: 4.6, 9.8 cm
+    if beside_m > 0.25:
+        assert len(past) == 0

@@ -385,6 +385,29 @@ def test_pieces_meeting_where_the_next_span_s_wires_run_through_are_no_support(c
         assert towers[k][0] - 6.0 <= x.min() and x.max() <= towers[k + 1][0] + 6.0
 
 
+def test_a_wire_measured_from_one_support_of_its_span_hangs_from_the_other_too():
+    """A span's conductors reach both its supports; a faint shield measured along 38 m of
+    its 90 m span from one of them (its end 50 m from the other: farther than pieces
+    meet) hangs from the other too: it is drawn to both attachments, and tracing and the
+    views' evidence may measure the rest."""
+    rng = np.random.default_rng(4)
+    pts, wires, legs, towers = _line(rng, 0.0, join_first_two=False)
+    half = _span_points([-90, 0, 42], [0, 0, 42], 1500.0, rng, keep=(2.0, 50.0))
+    pts = np.r_[pts, half]
+    idx = np.arange(len(pts) - len(half), len(pts))
+    wires = wires + [_wire(pts, idx, np.array([1.0, 0.0]), len(wires))]
+    sp = find_spans(_views(220.0), _flat, wires, [0] * len(wires), [_corridor(90.0)], pts)
+    assert len(sp.supports) == 5
+    at = {i: s.position[0] for i, s in enumerate(sp.supports)}
+    shield = [(w, p) for w, p in zip(sp.wires, sp.placement, strict=True) if w.z0 > 40.0]
+    assert len(shield) == 1
+    w, p = shield[0]
+    assert None not in p.supports
+    assert sorted(at[i] for i in p.supports) == pytest.approx([-90.0, 0.0], abs=0.5)
+    assert sorted(w.points(np.array(w.s_range))[:, 0]) == pytest.approx([-90.0, 0.0], abs=0.5)
+    assert p.span == next(q.span for q in sp.placement if set(q.supports) == set(p.supports))
+
+
 def test_wires_running_out_of_the_images_end_at_no_support():
     rng = np.random.default_rng(2)
     pts, wires, legs, towers = _line(rng, 0.0, join_first_two=False)
