@@ -783,8 +783,7 @@ def evidence_stretches(
 
 def _spacing(wire: FittedWire, pts_in_world: F64) -> float:
     """The median spacing of the wire's own points along it (bounded to a few per tenth)."""
-    own = np.sort(wire.plane_coords(pts_in_world[wire.point_indices])[0])
-    d = np.diff(own)
+    d = np.diff(wire.own_positions(pts_in_world))
     d = d[d > 0]
     return float(np.clip(np.median(d) if len(d) else 0.05, 0.02, 0.1))
 

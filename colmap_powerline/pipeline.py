@@ -1553,7 +1553,7 @@ def _traced_to_supports(
         n0 = len(pts)
         grown, traced = trace_wires(
             scene,
-            [wires[k] for k in short],
+            [_measured_part(wires[k], pts, options.trace.extend) for k in short],
             pts,
             crop_wire_mask(options.detect, options.verify.template_length_px),
             azimuth,
@@ -1605,6 +1605,23 @@ def _traced_to_supports(
     return wires, verified, decoded
 
 
+def _measured_part(wire: FittedWire, pts_in_world: F64, extend: float) -> FittedWire:
+    """The wire as tracing takes it on: where it is drawn more than a round's length
+    (``extend``) past its points' ends, it ends there. Tracing looks along the whole of
+    the curve it is given at once, and past its ends round by round with its tests; a
+    curve drawn on to a support tens of metres past its points (a shield measured along
+    half its span, hanging from the span's far support too) is a prediction there, not a
+    place to look at once (on the package's `angle` layout a shield took 40 m of points
+    0.4-1.9 m off it so)."""
+    own = wire.own_positions(pts_in_world)
+    if len(own) == 0:
+        return wire
+    lo, hi = wire.s_range
+    lo = float(own[0]) if own[0] - lo > extend else lo
+    hi = float(own[-1]) if hi - own[-1] > extend else hi
+    return dataclasses.replace(wire, s_range=(lo, hi))
+
+
 # At most this many rounds of judging span-wires' unmeasured stretches by the views' line
 # evidence together, each on the curves refitted to what the round before measured.
 EVIDENCE_ROUNDS = 4
@@ -1649,23 +1666,32 @@ def _measured_by_evidence(
         if not todo:
             break
         start = len(verified)
+        kept_all: set[int] = set()
         verified = verified.with_traced(np.concatenate(new), np.concatenate(views))
         for k, p in enumerate(new):
             if len(p) == 0:
                 continue
-            idx = np.r_[out[k].point_indices, np.arange(start, start + len(p))]
+            added = np.arange(start, start + len(p))
             start += len(p)
             along, _ = plan_axes(corridors[legs[k]].azimuth_deg)
-            fit = refit(out[k], verified.pts_in_world, idx, along, options.wires)
+            fit = refit(
+                out[k], verified.pts_in_world, np.r_[out[k].point_indices, added], along,
+                options.wires,
+            )  # fmt: skip
             drawn = np.sort(fit.plane_coords(out[k].points(np.array(out[k].s_range)))[0])
             out[k] = dataclasses.replace(fit, s_range=(float(drawn[0]), float(drawn[1])))
+            if np.isin(added, fit.point_indices).all():
+                kept_all.add(k)
+        # Judged again: the wires whose curves took all of what they gained (a stretch whose
+        # points the refitted curve leaves would be judged, and taken, again).
+        todo = kept_all
     return out, verified, decoded
 
 
 def _own_spacing(wire: FittedWire, pts_in_world: F64) -> tuple[F64, float]:
     """The wire's points' positions along it (sorted) and their median spacing (NaN: fewer
     than two points)."""
-    own = np.sort(wire.plane_coords(pts_in_world[wire.point_indices])[0])
+    own = wire.own_positions(pts_in_world)
     return own, float(np.median(np.diff(own))) if len(own) >= 2 else float("nan")
 
 

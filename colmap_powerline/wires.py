@@ -173,6 +173,10 @@ class FittedWire:
         across = rel @ across_of(d)
         return s, across, np.asarray(pts)[:, 2] - self.z_at(s)
 
+    def own_positions(self, pts_in_world: F64) -> F64:
+        """Where its own points (``pts_in_world[point_indices]``) lie along it, sorted."""
+        return np.sort(self.plane_coords(pts_in_world[self.point_indices])[0])
+
     def s_at_along(self, along: F64, bounds: tuple[float, float]) -> tuple[float, float]:
         """The ``s`` where the wire's plane reaches the plan positions ``bounds`` along the
         unit direction ``along`` (measured from the origin), in increasing order."""
