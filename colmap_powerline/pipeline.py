@@ -1553,7 +1553,7 @@ def _traced_to_supports(
         n0 = len(pts)
         grown, traced = trace_wires(
             scene,
-            [_measured_part(wires[k], pts, options.trace.extend) for k in short],
+            [_measured_part(wires[k], pts, options.spans.max_meeting_gap) for k in short],
             pts,
             crop_wire_mask(options.detect, options.verify.template_length_px),
             azimuth,
@@ -1605,20 +1605,23 @@ def _traced_to_supports(
     return wires, verified, decoded
 
 
-def _measured_part(wire: FittedWire, pts_in_world: F64, extend: float) -> FittedWire:
-    """The wire as tracing takes it on: where it is drawn more than a round's length
-    (``extend``) past its points' ends, it ends there. Tracing looks along the whole of
-    the curve it is given at once, and past its ends round by round with its tests; a
-    curve drawn on to a support tens of metres past its points (a shield measured along
-    half its span, hanging from the span's far support too) is a prediction there, not a
-    place to look at once (on the package's `angle` layout a shield took 40 m of points
-    0.4-1.9 m off it so)."""
+def _measured_part(wire: FittedWire, pts_in_world: F64, max_gap: float) -> FittedWire:
+    """The wire as tracing takes it on: where it is drawn farther than ``max_gap`` past its
+    points' ends (``--spans.max_meeting_gap``: farther than two pieces of one conductor
+    meet, so farther than its curve is trusted to carry it anywhere else), it ends there.
+    Tracing looks along the whole curve it is given at once, and past its ends round by
+    round with its tests. A wire drawn on to its span's far support because the span's
+    other wires reach it (a shield measured along half its span) is a prediction there,
+    not a place to look along at once: on the package's `angle` layout a shield so took
+    40 m of points 0.4-1.9 m off it. Nearer, the look along the curve finds the wire
+    (the same layout: a shield measured along 5 m, drawn 37 m on to the angle tower,
+    found along 16 m of that at once, and 0.15-0.7 m off it when taken round by round)."""
     own = wire.own_positions(pts_in_world)
     if len(own) == 0:
         return wire
     lo, hi = wire.s_range
-    lo = float(own[0]) if own[0] - lo > extend else lo
-    hi = float(own[-1]) if hi - own[-1] > extend else hi
+    lo = float(own[0]) if own[0] - lo > max_gap else lo
+    hi = float(own[-1]) if hi - own[-1] > max_gap else hi
     return dataclasses.replace(wire, s_range=(lo, hi))
 
 

@@ -408,6 +408,23 @@ def test_a_wire_measured_from_one_support_of_its_span_hangs_from_the_other_too()
     assert p.span == next(q.span for q in sp.placement if set(q.supports) == set(p.supports))
 
 
+def test_tracing_takes_a_wire_drawn_far_past_its_points_on_from_where_they_end():
+    """Tracing looks along the whole curve it is given at once: a wire drawn on to a support
+    farther past its points than pieces of one conductor meet (40 m) is given to it ending
+    where they end there (past that, its curve is a prediction, traced round by round with
+    tracing's tests); one drawn nearer to its attachment is given as drawn."""
+    from colmap_powerline.pipeline import _measured_part
+
+    rng = np.random.default_rng(5)
+    pts = _span_points([-90, 0, 42], [0, 0, 42], 1500.0, rng, keep=(2.0, 50.0))
+    w = _wire(pts, np.arange(len(pts)), np.array([1.0, 0.0]), 0)
+    lo, hi = w.s_range
+    drawn = dataclasses.replace(w, s_range=(lo - 2.0, hi + 48.0))
+    given = _measured_part(drawn, pts, 40.0)
+    assert given.s_range == pytest.approx((lo - 2.0, hi), abs=0.05)
+    assert _measured_part(drawn, pts, 60.0).s_range == drawn.s_range
+
+
 def test_wires_running_out_of_the_images_end_at_no_support():
     rng = np.random.default_rng(2)
     pts, wires, legs, towers = _line(rng, 0.0, join_first_two=False)
