@@ -828,6 +828,7 @@ def reconstruct(
         wires, part.corridors, spans, verified, scene, options
     )
     decoded += dec
+    wires, spans = _hung_where_reached(wires, spans, verified.pts_in_world, options)
     timings["trace_to_supports"] = time.perf_counter() - t0
     labels = np.full(len(verified), -1, np.int64)
     for w in wires:
@@ -1623,6 +1624,44 @@ def _measured_part(wire: FittedWire, pts_in_world: F64, max_gap: float) -> Fitte
     lo = float(own[0]) if own[0] - lo > max_gap else lo
     hi = float(own[-1]) if hi - own[-1] > max_gap else hi
     return dataclasses.replace(wire, s_range=(lo, hi))
+
+
+def _hung_where_reached(
+    wires: list[FittedWire], spans: Spans, pts_in_world: F64, options: ReconstructionOptions
+) -> tuple[list[FittedWire], Spans]:
+    """The wires and spans with each wire hanging only from the supports its points reach
+    (within ``--spans.max_meeting_gap``, as :func:`find_spans` attaches them), now that
+    tracing and the views' evidence have measured what they can. A wire found reaching one
+    of its span's supports was drawn to the other too, so that both could measure it on
+    toward it; where its points still end farther from that support, its curve there is a
+    prediction from too little (the shared cross seed 6: two shields measured along 35 m
+    of 100 m from one tower, a straight line continued 65 m, which put the far tower's top
+    1.75 m low and made them conductors): it ends at its points there, and hangs from no
+    support at that end (``coverage`` says how far it was measured)."""
+    placement = list(spans.placement)
+    out = list(wires)
+    gap = options.spans.max_meeting_gap
+    for k, (w, p) in enumerate(zip(wires, spans.placement, strict=True)):
+        own = w.own_positions(pts_in_world)
+        if len(own) == 0:
+            continue
+        lo, hi = w.s_range
+        ends = list(p.supports)
+        if ends[0] is not None and own[0] - lo > gap:
+            lo, ends[0] = float(own[0]), None
+        if ends[1] is not None and hi - own[-1] > gap:
+            hi, ends[1] = float(own[-1]), None
+        if (ends[0], ends[1]) != p.supports:
+            logger.info(
+                "spans: wire %d: its points end farther than %.0f from its span's support "
+                "%s: it hangs from no support there",
+                w.wire_id,
+                gap,
+                " and ".join(str(i) for i, j in zip(p.supports, ends, strict=True) if j is None),
+            )
+            out[k] = dataclasses.replace(w, s_range=(lo, hi))
+            placement[k] = dataclasses.replace(p, supports=(ends[0], ends[1]))
+    return out, dataclasses.replace(spans, wires=out, placement=placement)
 
 
 # At most this many rounds of judging span-wires' unmeasured stretches by the views' line

@@ -425,6 +425,40 @@ def test_tracing_takes_a_wire_drawn_far_past_its_points_on_from_where_they_end()
     assert _measured_part(drawn, pts, 60.0).s_range == drawn.s_range
 
 
+def test_a_wire_hangs_at_the_end_only_from_the_supports_its_points_reach():
+    """Drawn to its span's far support so that tracing and the views' evidence could
+    measure it on, a wire whose points still end farther from that support than pieces
+    meet (40 m) ends at its points there and hangs from no support at that end; one
+    measured to within that hangs from both."""
+    from colmap_powerline.pipeline import ReconstructionOptions, _hung_where_reached
+    from colmap_powerline.spans import Spans, WireSpan
+
+    rng = np.random.default_rng(6)
+    short = _span_points([0, 0, 42], [100, 0, 42], 1500.0, rng, keep=(2.0, 65.0))
+    long = _span_points([0, 5, 42], [100, 5, 42], 1500.0, rng, keep=(2.0, 35.0))
+    pts = np.r_[short, long]
+    az = np.array([1.0, 0.0])
+    wires = [
+        _wire(pts, np.arange(len(short)), az, 0),
+        _wire(pts, np.arange(len(short), len(pts)), az, 1),
+    ]
+    drawn = []
+    for w in wires:  # drawn to both attachments, x = 0 and 100
+        s = w.plane_coords(
+            np.array([[0.0, w.plane_origin_xy[1], 0.0], [100.0, w.plane_origin_xy[1], 0.0]])
+        )[0]
+        drawn.append(dataclasses.replace(w, s_range=(float(s.min()), float(s.max()))))
+    placement = [WireSpan(1, 1, (0, 1), 0), WireSpan(1, 1, (0, 1), 1)]
+    spans = Spans(drawn, placement, [], [0, 1])
+    out, sp = _hung_where_reached(drawn, spans, pts, ReconstructionOptions())
+    assert sp.placement[1].supports == (0, 1) and out[1].s_range == drawn[1].s_range
+    near, far = sorted(out[0].points(np.array(out[0].s_range))[:, 0])
+    assert near == pytest.approx(0.0, abs=0.05) and far == pytest.approx(35.0, abs=0.5)
+    s_far = 0 if out[0].plane_direction_xy[0] < 0 else 1
+    assert sp.placement[0].supports[s_far] is None and sp.placement[0].supports[1 - s_far] == 0
+    assert sp.wires is out and spans.placement[0].supports == (0, 1)
+
+
 def test_wires_running_out_of_the_images_end_at_no_support():
     rng = np.random.default_rng(2)
     pts, wires, legs, towers = _line(rng, 0.0, join_first_two=False)
