@@ -216,6 +216,7 @@ COVERAGE_COLUMNS = (
     "longest_gap_m",
     "flight_limited_gap_m",
     "pairs_vs_traced_m",
+    "sag_max_at_measured",
 )
 
 
@@ -228,7 +229,8 @@ def measures_csv(
     """One row per wire (the columns of :data:`CSV_COLUMNS`, then with ``supports`` those of
     :data:`SUPPORT_COLUMNS`, with ``coverage`` those of :data:`COVERAGE_COLUMNS`: the gaps
     listed in ``wires.json``, their summed length that the images cannot measure, how far
-    the pairs' points lie from the traced ones),
+    the pairs' points lie from the traced ones, whether the wire was measured where it sags
+    most: ``no``, its sag there comes from its curve continued),
     millimetre precision."""
     buf = io.StringIO()
     writer = csv.writer(buf, lineterminator="\n")
@@ -272,6 +274,7 @@ def measures_csv(
             row += [f"{cov.measured_share:.3f}", len(cov.gaps), f"{cov.longest_gap_m:.3f}"]
             row.append(f"{sum(g.length_m for g in cov.gaps if g.flight_limited):.3f}")
             row.append("" if cov.disagreement_m is None else f"{cov.disagreement_m:.3f}")
+            row.append("yes" if cov.measured_at(m.sag_max_at_m) else "no")
         if placement is not None:
             pl = placement[k]
             row += [pl.line, pl.span]

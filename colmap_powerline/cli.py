@@ -19,6 +19,9 @@ from .options import OptionError
 from .sfm import SfmOptions
 from .synthetic import Background, FlightPattern, Layout, SyntheticSpanOptions
 
+if typing.TYPE_CHECKING:
+    from .results import ReconstructionResult
+
 logger = logging.getLogger("colmap_powerline")
 
 
@@ -141,13 +144,21 @@ def _cmd_demo(args: argparse.Namespace) -> int:
         + ", ".join(f"{k} {'ok' if v else 'MISSED'}" for k, v in targets.items())
     )
     print("\nsag and clearance (wires.csv):")
-    for w, m in zip(result.wires, result.measures, strict=True):
+    for k, (w, m) in enumerate(zip(result.wires, result.measures, strict=True)):
         print(
-            f"  wire {w.wire_id} ({m.kind}): span {m.span_length_m:.1f} m, sag {m.sag_max_m:.2f} m,"
-            f" clearance {m.clearance_vertical_m:.2f} m"
+            f"  wire {w.wire_id} ({m.kind}): span {m.span_length_m:.1f} m, sag {m.sag_max_m:.2f} m"
+            f"{_sag_from(result, k)}, clearance {m.clearance_vertical_m:.2f} m"
         )
     print(f"report: {result.outputs.get('report')}")
     return 0
+
+
+def _sag_from(result: ReconstructionResult, k: int) -> str:
+    """Said after wire ``k``'s sag where the wire was not measured where it sags most."""
+    cov = result.coverage
+    if not cov or cov[k].measured_at(result.measures[k].sag_max_at_m):
+        return ""
+    return f" (from its curve: measured along {100 * cov[k].measured_share:.0f} % of the span)"
 
 
 def _parse_bool(text: str) -> bool:
@@ -385,11 +396,12 @@ def _cmd_reconstruct(args: argparse.Namespace) -> int:
         f"{len(result.wires)} wires from {len(result.verified)} verified points "
         f"({len(result.pairs)} pairs) → {args.output_path}"
     )
-    for w, m in zip(result.wires, result.measures, strict=True):
+    for k, (w, m) in enumerate(zip(result.wires, result.measures, strict=True)):
         flag = f", {len(m.flagged)} stretches below the limit" if m.flagged else ""
         print(
             f"  wire {w.wire_id}: span {m.span_length_m:.1f}{units}, sag {m.sag_max_m:.2f}{units}"
-            f" (mid-span {m.sag_midspan_m:.2f}), lowest z {m.lowest_point[2]:.2f}{units}, "
+            f"{_sag_from(result, k)} (mid-span {m.sag_midspan_m:.2f}), "
+            f"lowest z {m.lowest_point[2]:.2f}{units}, "
             f"clearance {m.clearance_vertical_m:.2f}{units} vertical / "
             f"{m.clearance_3d_m:.2f}{units} 3D, {len(w.point_indices)} points, "
             f"rms {w.rms_residual:.3f}{units}{flag}"

@@ -161,6 +161,13 @@ class WireCoverage:
     def longest_gap_m(self) -> float:
         return max((g.length_m for g in self.gaps), default=0.0)
 
+    def measured_at(self, x_m: float) -> bool:
+        """Whether the wire was measured at ``x_m`` (horizontal distance from its first end,
+        like its measures): not inside one of its gaps. Where it was not (the point of
+        maximum sag of a shield measured along half its span), what is read there comes
+        from its curve continued."""
+        return not any(g.from_m <= x_m <= g.to_m for g in self.gaps)
+
     @property
     def disagreement_m(self) -> float | None:
         """How far apart the pairs' and the traced measurements put the wire (median)."""

@@ -148,8 +148,10 @@ def export_results(
         for d, sup in zip(wire_docs, supports, strict=True):
             d["support"] = sup.to_json()
     if coverage is not None:
-        for d, cov in zip(wire_docs, coverage, strict=True):
+        for k, (d, cov) in enumerate(zip(wire_docs, coverage, strict=True)):
             d["coverage"] = cov.to_json()
+            if measures is not None:  # no: its sag there comes from its curve continued
+                d["coverage"]["sag_max_at_measured"] = cov.measured_at(measures[k].sag_max_at_m)
     if placement is None:  # one line, one span, no support found
         placement = [WireSpan(1, 1, (None, None), w.wire_id) for w in wires]
     for d, pl in zip(wire_docs, placement, strict=True):

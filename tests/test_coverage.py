@@ -158,6 +158,11 @@ def test_coverage_in_wires_json_and_csv(tmp_path):
     assert float(rows[0]["longest_gap_m"]) == pytest.approx(10.0, abs=0.3)
     assert float(rows[0]["flight_limited_gap_m"]) == pytest.approx(10.0, abs=0.3)
     assert rows[0]["gaps"] == "1" and rows[0]["pairs_vs_traced_m"] == ""  # nothing traced
+    # It sags most at mid-span (30 m from its first end), in its gap (25-35 m): its sag
+    # there comes from its curve, and both files say so.
+    assert measures[0].sag_max_at_m == pytest.approx(30.0, abs=0.5)
+    assert rows[0]["sag_max_at_measured"] == "no" and doc["sag_max_at_measured"] is False
+    assert cov[0].measured_at(10.0) and not cov[0].measured_at(30.0)
     # Without coverage the table keeps its columns.
     assert "measured_share" not in measures_csv(measures).splitlines()[0]
 
@@ -264,3 +269,22 @@ def test_each_pair_s_points_are_moved_onto_the_traced_points_by_its_own_offset()
     s_mid = np.linspace(-25, 10, 8)  # (past 20 the uncompared pair still pulls it up)
     assert np.max(np.abs(fitted.z_at(s_mid) - curve.z_at(s_mid))) < 0.01
     assert np.max(np.abs(wire.z_at(s_mid) - curve.z_at(s_mid))) > 0.02
+
+
+def test_the_command_line_says_where_a_sag_comes_from_the_curve():
+    """Printed after a wire's sag, where the wire was not measured where it sags most."""
+    from types import SimpleNamespace
+
+    from colmap_powerline.cli import _sag_from
+
+    wire, pts = _wire(0, 0.0, HEIGHT, S)
+    scene = _scene([(0, -15), (0, 15)])
+    cov = measured_coverage(scene, [wire], pts, 0.12, 3.0, 1, 0.15)
+    measures = [measure_wire(wire, scene.ground)]
+    said = _sag_from(SimpleNamespace(coverage=cov, measures=measures), 0)
+    assert said.startswith(" (from its curve: measured along 8")  # 10 m of 60 unmeasured
+    full = measured_coverage(
+        scene, [wire], wire.points(np.arange(-30, 30.01, 0.05)), 0.12, 3.0, 1, 0.15
+    )
+    assert _sag_from(SimpleNamespace(coverage=full, measures=measures), 0) == ""
+    assert _sag_from(SimpleNamespace(coverage=[], measures=measures), 0) == ""
