@@ -206,7 +206,7 @@ def _profile(
         lw=1,
     )
     ax.annotate(
-        f"sag {m.sag_max_m:.2f} {units}",
+        _sag_label(result, k, units),
         (m.sag_max_at_m, poly[:, 2].max()),
         ha="center",
         va="bottom",
@@ -346,6 +346,16 @@ def _cameras(result: ReconstructionResult, units: str, path: Path) -> Path:
     _finish_plan(ax, units, "camera positions and the chosen crossing pairs")
     ax.legend(loc="best", fontsize=8)
     return _save(fig, path)
+
+
+def _sag_label(result: ReconstructionResult, k: int, units: str) -> str:
+    """Wire ``k``'s sag, said to come from its curve where it was not measured where it
+    sags most (:meth:`WireCoverage.measured_at`)."""
+    m = result.measures[k]
+    label = f"sag {m.sag_max_m:.2f} {units}"
+    if k < len(result.coverage) and not result.coverage[k].measured_at(m.sag_max_at_m):
+        label += " (from its curve: not measured there)"
+    return label
 
 
 def _measured(result: ReconstructionResult, k: int) -> str:

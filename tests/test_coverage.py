@@ -288,3 +288,10 @@ def test_the_command_line_says_where_a_sag_comes_from_the_curve():
     )
     assert _sag_from(SimpleNamespace(coverage=full, measures=measures), 0) == ""
     assert _sag_from(SimpleNamespace(coverage=[], measures=measures), 0) == ""
+    # The report's profile says it by the sag too.
+    from colmap_powerline.report import _sag_label
+
+    label = _sag_label(SimpleNamespace(coverage=cov, measures=measures), 0, "m")
+    assert label.endswith("(from its curve: not measured there)")
+    assert _sag_label(SimpleNamespace(coverage=full, measures=measures), 0, "m").startswith("sag")
+    assert "curve" not in _sag_label(SimpleNamespace(coverage=full, measures=measures), 0, "m")
