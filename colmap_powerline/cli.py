@@ -155,10 +155,12 @@ def _cmd_demo(args: argparse.Namespace) -> int:
 
 def _sag_from(result: ReconstructionResult, k: int) -> str:
     """Said after wire ``k``'s sag where the wire was not measured where it sags most."""
-    cov = result.coverage
-    if not cov or cov[k].measured_at(result.measures[k].sag_max_at_m):
+    from .results import sag_from_curve
+
+    if not sag_from_curve(result, k):
         return ""
-    return f" (from its curve: measured along {100 * cov[k].measured_share:.0f} % of the span)"
+    share = result.coverage[k].measured_share
+    return f" (from its curve: measured along {100 * share:.0f} % of the span)"
 
 
 def _parse_bool(text: str) -> bool:

@@ -1642,15 +1642,11 @@ def _hung_where_reached(
     out = list(wires)
     gap = options.spans.max_meeting_gap
     for k, (w, p) in enumerate(zip(wires, spans.placement, strict=True)):
-        own = w.own_positions(pts_in_world)
-        if len(own) == 0:
-            continue
-        lo, hi = w.s_range
-        ends = list(p.supports)
-        if ends[0] is not None and own[0] - lo > gap:
-            lo, ends[0] = float(own[0]), None
-        if ends[1] is not None and hi - own[-1] > gap:
-            hi, ends[1] = float(own[-1]), None
+        cut = _measured_part(w, pts_in_world, gap).s_range
+        ends = [None if sid is not None and cut[j] != w.s_range[j] else sid
+                for j, sid in enumerate(p.supports)]  # fmt: skip
+        lo, hi = (cut[j] if ends[j] is None and p.supports[j] is not None else w.s_range[j]
+                  for j in (0, 1))  # fmt: skip
         if (ends[0], ends[1]) != p.supports:
             logger.info(
                 "spans: wire %d: its points end farther than %.0f from its span's support "
@@ -1703,7 +1699,7 @@ def _measured_by_evidence(
             options.verify.num_threads,
             only=todo,
         )
-        decoded += [p for p in dec if p not in decoded]
+        decoded += dec
         todo = {k for k, p in enumerate(new) if len(p)}
         if not todo:
             break

@@ -351,11 +351,10 @@ def _cameras(result: ReconstructionResult, units: str, path: Path) -> Path:
 def _sag_label(result: ReconstructionResult, k: int, units: str) -> str:
     """Wire ``k``'s sag, said to come from its curve where it was not measured where it
     sags most (:meth:`WireCoverage.measured_at`)."""
-    m = result.measures[k]
-    label = f"sag {m.sag_max_m:.2f} {units}"
-    if k < len(result.coverage) and not result.coverage[k].measured_at(m.sag_max_at_m):
-        label += " (from its curve: not measured there)"
-    return label
+    from .results import sag_from_curve
+
+    label = f"sag {result.measures[k].sag_max_m:.2f} {units}"
+    return label + (" (from its curve: not measured there)" if sag_from_curve(result, k) else "")
 
 
 def _measured(result: ReconstructionResult, k: int) -> str:

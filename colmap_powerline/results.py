@@ -126,6 +126,13 @@ class ReconstructionResult:
     input_path: Path | None = None  # the model it started from
 
 
+def sag_from_curve(result: ReconstructionResult, k: int) -> bool:
+    """Whether wire ``k`` of ``result`` was not measured where it sags most (its sag there
+    comes from its curve continued; :meth:`WireCoverage.measured_at`)."""
+    cov = result.coverage
+    return k < len(cov) and not cov[k].measured_at(result.measures[k].sag_max_at_m)
+
+
 @dataclass(eq=False)
 class CorridorResult:
     """What one corridor's pairs measured: :func:`reconstruct_corridor`."""

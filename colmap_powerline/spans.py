@@ -1581,7 +1581,7 @@ def _placed(
         for line in sorted(line_ids.values())
         for n, key in enumerate(sorted({sk for sk in spans_key if sk[0] == line}))
     }
-    supports_out = _with_attached(supports_out, out, attached)
+    supports_out = attached_again(supports_out, out, placement)
     placement = [
         dataclasses.replace(p, span=numbers[sk]) for p, sk in zip(placement, spans_key, strict=True)
     ]
@@ -1601,13 +1601,21 @@ def _placed(
     return Spans(out, placement, supports_out, work.source, out_legs)
 
 
-def _with_attached(
-    supports: list[LineSupport],
-    wires: Sequence[FittedWire],
-    attached: dict[int, list[tuple[int, F64]]],
+def attached_again(
+    supports: list[LineSupport], wires: Sequence[FittedWire], placement: Sequence[WireSpan]
 ) -> list[LineSupport]:
-    """``supports`` with their tops, top wires, wires and reach from ``attached``: per
-    support id, (index into ``wires``, attachment point)."""
+    """``supports`` with their tops, top wires, wires and reach read from the wires as they
+    are drawn (each wire's ends at its supports are its attachments): when the supports are
+    placed, and again at the end of the run. The wires found
+    with the supports are traced on and refitted afterwards; a top read from a shield's
+    curve then, fitted to a short piece and continued to the support, may lie metres off
+    its attachment now (the package's `angle` layout: the angle tower's top 8.1 m high,
+    and the end towers', raised by it, 8.1 m)."""
+    attached: dict[int, list[tuple[int, F64]]] = {}
+    for k, (w, p) in enumerate(zip(wires, placement, strict=True)):
+        for side, sid in enumerate(p.supports):
+            if sid is not None:
+                attached.setdefault(sid, []).append((k, w.points(np.array([w.s_range[side]]))[0]))
     out = list(supports)
     for sid, att in attached.items():
         out[sid] = dataclasses.replace(
@@ -1618,23 +1626,6 @@ def _with_attached(
             reach_m=float(max(np.hypot(*(p[:2] - out[sid].position[:2])) for _, p in att)),
         )
     return out
-
-
-def attached_again(
-    supports: list[LineSupport], wires: Sequence[FittedWire], placement: Sequence[WireSpan]
-) -> list[LineSupport]:
-    """``supports`` with their tops, top wires and reach read again from the wires as they
-    are drawn now (each wire's ends at its supports are its attachments). The wires found
-    with the supports are traced on and refitted afterwards; a top read from a shield's
-    curve then, fitted to a short piece and continued to the support, may lie metres off
-    its attachment now (the package's `angle` layout: the angle tower's top 8.1 m high,
-    and the end towers', raised by it, 8.1 m)."""
-    attached: dict[int, list[tuple[int, F64]]] = {}
-    for k, (w, p) in enumerate(zip(wires, placement, strict=True)):
-        for side, sid in enumerate(p.supports):
-            if sid is not None:
-                attached.setdefault(sid, []).append((k, w.points(np.array([w.s_range[side]]))[0]))
-    return _with_attached(supports, wires, attached)
 
 
 def _attachments(
