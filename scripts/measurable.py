@@ -18,7 +18,11 @@ measurable share of its length, the completeness (within 10 cm, as ``score.py``)
 whole wire, over its measurable part and over the rest; then the share of its length that is
 measurable and seen from three or more positions across it (the issue's "three or more
 strips": views that far apart can tell a false pairing, ``evaluate.positions_seen``), and the
-completeness there. Elsewhere only two strips, or one, see the wire.
+completeness there. Elsewhere only two strips, or one, see the wire. Last, how far the run's
+points near the wire (within 0.3 m, each taken by its nearest true wire) lie from it in its
+measurable part, across it (horizontally) and up, the 90th percentile of each absolute
+offset. A miss within the measurable part is a gap in the points, or points farther off
+than the 10 cm tolerance in one of these two directions.
 """
 
 from __future__ import annotations
@@ -37,9 +41,12 @@ from colmap_powerline.evaluate import measurable_points, positions_seen
 from colmap_powerline.scene import load_scene
 from colmap_powerline.wires import WiresOptions
 
+F = float | None
+
 STEP = 0.1  # m between samples along a true wire
 DENSE_STEP = 0.02  # m between the samples of the other wires (well under a pixel)
 TOLERANCE = 0.10  # m, completeness tolerance of the shared scorer
+NEAR = 0.30  # m, the run's points this near a true wire are its points for the offsets
 
 
 def _samples(polyline: np.ndarray, step: float = STEP) -> tuple[np.ndarray, np.ndarray]:
@@ -55,6 +62,22 @@ def _samples(polyline: np.ndarray, step: float = STEP) -> tuple[np.ndarray, np.n
 
 def _pct(hit: np.ndarray, mask: np.ndarray) -> float | None:
     return float(100 * hit[mask].mean()) if mask.any() else None
+
+
+def _offsets(pts: np.ndarray, tangent: np.ndarray, found: np.ndarray) -> tuple[F, F]:
+    """The 90th percentiles of the absolute offsets (m) of ``found`` from the samples
+    ``pts`` nearest to them, across the wire (horizontally) and up; None without points."""
+    if not len(found):
+        return None, None
+    k = cKDTree(pts).query(found)[1]
+    off, t = found - pts[k], tangent[k]
+    across = np.c_[t[:, 1], -t[:, 0], np.zeros(len(k))]
+    across /= np.maximum(np.linalg.norm(across, axis=1, keepdims=True), 1e-12)
+    up = np.cross(across, t)
+    return (
+        float(np.percentile(np.abs(np.einsum("ij,ij->i", off, across)), 90)),
+        float(np.percentile(np.abs(np.einsum("ij,ij->i", off, up)), 90)),
+    )
 
 
 def _f(v: float | None) -> str:
@@ -85,10 +108,16 @@ def main(argv: list[str] | None = None) -> int:
     max_sigma = WiresOptions().inlier_distance / 2.33
     lines = [np.asarray(w["polyline"], np.float64) for w in truth]
     dense = [_samples(p, DENSE_STEP)[0] for p in lines]
+    # Each of the run's points near a true wire is that wire's (the nearest one's).
+    nearest = np.full(len(found), -1)
+    if len(found):
+        owner = np.concatenate([np.full(len(d), i) for i, d in enumerate(dense)])
+        dist, k = cKDTree(np.concatenate(dense)).query(found)
+        nearest = np.where(dist <= NEAR, owner[k], -1)
     rows = []
     print(
         "wire        kind     len m  measurable %  compl %  in measurable %  elsewhere %"
-        "  3+ positions %  in those %"
+        "  3+ positions %  in those %  p90 across cm  up cm"
     )
     for i, w in enumerate(truth):
         pts, tangent = _samples(lines[i])
@@ -107,6 +136,11 @@ def main(argv: list[str] | None = None) -> int:
             else np.zeros(len(pts), bool)
         )
 
+        mine = found[nearest == i]
+        if len(mine) and measurable.any():
+            # the wire's points in its measurable part
+            mine = mine[measurable[cKDTree(pts).query(mine)[1]]]
+        across, up = _offsets(pts, tangent, mine)
         row = {
             "wire": w.get("name", w.get("id")),
             "kind": w.get("kind", ""),
@@ -117,6 +151,8 @@ def main(argv: list[str] | None = None) -> int:
             "completeness_elsewhere_pct": _pct(hit, ~measurable),
             "three_positions_pct": float(100 * three.mean()),
             "completeness_three_positions_pct": _pct(hit, three),
+            "across_cm": None if across is None else 100 * across,
+            "up_cm": None if up is None else 100 * up,
         }
         rows.append(row)
         print(
@@ -125,7 +161,8 @@ def main(argv: list[str] | None = None) -> int:
             f"{_f(row['completeness_measurable_pct']):>16s} "
             f"{_f(row['completeness_elsewhere_pct']):>12s} "
             f"{_f(row['three_positions_pct']):>15s} "
-            f"{_f(row['completeness_three_positions_pct']):>11s}"
+            f"{_f(row['completeness_three_positions_pct']):>11s} "
+            f"{_f(row['across_cm']):>14s} {_f(row['up_cm']):>6s}"
         )
     if args.json:
         args.json.write_text(json.dumps(rows, indent=1))
