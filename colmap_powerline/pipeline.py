@@ -65,6 +65,7 @@ from .scene import Scene, SceneImage, load_scene, read_image, resolve_inputs
 from .sfm import run_sfm
 from .spans import LineSupport, Spans, WireSpan, attached_again, find_spans
 from .support import (
+    SupportOptions,
     WireSupport,
     height_above_ground,
     keep_supported,
@@ -1400,7 +1401,7 @@ def reconstruct_corridor(
         t1 = time.perf_counter()
         # Before tracing too: such a wire holds, in one strip, the line of a wire it paired
         # wrongly, which tracing would then find fixed nowhere apart from it (mixed seed 3).
-        wires, supports = _without_unconfirmed(wires, supports)
+        wires, supports = _without_unconfirmed(wires, supports, options.support)
         wires, supports, verified, dec = _traced(
             wires, supports, verified, scene, corridor, options, primitives=matches
         )
@@ -1438,7 +1439,7 @@ def reconstruct_corridor(
         if swapped:
             keep = [k for k in range(len(wires)) if k not in swapped]
             wires, supports = _kept(wires, supports, keep)
-        wires, supports = _without_unconfirmed(wires, supports)
+        wires, supports = _without_unconfirmed(wires, supports, options.support)
         _add_time(timings, "trace", t1)
         wires, supports = _above_the_floor(
             wires,
@@ -2347,29 +2348,50 @@ def _kept(
 
 
 def _without_unconfirmed(
-    wires: list[FittedWire], supports: list[WireSupport]
+    wires: list[FittedWire], supports: list[WireSupport], support: SupportOptions
 ) -> tuple[list[FittedWire], list[WireSupport]]:
-    """The wires without those on weak geometry (no view can tell them from a false pairing)
-    that no strip confirms on its own either (``confirming_strips`` 0: every strip's views
-    see them only where other wires lie, or miss them), renumbered from 0. Nothing speaks for
-    such a wire but the pairing it came from: on the shared two-strip flights the two of
-    them written in fifteen scenes were a 98 m pairing of one conductor's image in one strip
-    with another's in the other (mixed seed 3) and a 14 m piece a third of which lay
-    0.3-0.6 m off (soil seed 11); every other wire written had a strip confirming it. Run
-    before tracing as well as after: the pairing holds, in one strip, the line of the wire
-    whose image it borrowed, and tracing, which sees that wire only beside it there, would
-    fix it nowhere and drop it (mixed seed 3's R2: 0 % with the rule run only after
-    tracing, 99.7 % with it run before). A wire the line evidence found is no pairing, and
-    no strip's detector confirms it (it is too faint for the detector): it stays."""
+    """The wires without those that no strip confirms on its own (``confirming_strips`` 0:
+    every strip's views see them only where other wires lie, or miss them) and that nothing
+    else tells from a false pairing: on weak geometry (no view can), or rejected by the
+    views' hit rates (``support.accepts``: the views able to tell do not find it) and kept
+    only by tracing's second look. Renumbered from 0. Nothing speaks for such a wire but the
+    pairing it came from: on the shared two-strip flights the two of them written in fifteen
+    scenes were a 98 m pairing of one conductor's image in one strip with another's in the
+    other (mixed seed 3) and a 14 m piece a third of which lay 0.3-0.6 m off (soil seed 11);
+    every other wire written had a strip confirming it. Tracing does not speak for it
+    either: where a wire runs along the strips, every view of a strip sees the plane
+    through the strip and the image wire it borrowed, so the views of the two strips a
+    pairing came from agree on it (shared multispan seed 12: a 105 m copy of a conductor
+    8.9 m from it, rejected by its hit rates, 36 % of them in the views able to tell, was
+    kept when tracing found it at 55 % of its places). Run before tracing as well as after:
+    the pairing holds, in one strip, the line of the wire whose image it borrowed, and
+    tracing, which sees that wire only beside it there, would fix it nowhere and drop it
+    (mixed seed 3's R2: 0 % with the rule run only after tracing, 99.7 % with it run
+    before). A wire the line evidence found is no pairing, and no strip's detector confirms
+    it (it is too faint for the detector): it stays."""
     keep = []
     for k, (w, s) in enumerate(zip(wires, supports, strict=True)):
-        if s.geometry == "weak" and s.confirming_strips == 0 and s.found_by == "pairs":
+        if s.confirming_strips == 0 and s.found_by == "pairs" and s.geometry == "weak":
             logger.info(
                 "support: wire %d dropped (%.0f m): no view can tell it from a false pairing "
                 "and no strip confirms it on its own (each sees it only where other wires "
                 "lie, or misses it)",
                 w.wire_id,
                 w.s_range[1] - w.s_range[0],
+            )
+        elif (
+            s.confirming_strips == 0
+            and s.found_by == "pairs"
+            and s.confidence is not None
+            and not support.accepts(s.confidence)
+        ):
+            logger.info(
+                "support: wire %d dropped (%.0f m): the views that can tell it from a false "
+                "pairing reject it (confidence %s) and no strip confirms it on its own (each "
+                "sees it only where other wires lie, or misses it)",
+                w.wire_id,
+                w.s_range[1] - w.s_range[0],
+                f"{s.confidence:.3f}",
             )
         else:
             keep.append(k)

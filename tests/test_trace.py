@@ -16,6 +16,7 @@ from colmap_powerline.detect import DetectOptions, contrast_threshold, line_resp
 from colmap_powerline.evaluate import distance_to_polyline
 from colmap_powerline.pipeline import crop_wire_mask
 from colmap_powerline.scene import Scene, SceneImage
+from colmap_powerline.support import SupportOptions
 from colmap_powerline.synthetic import TrueWire, load_true_wires
 from colmap_powerline.trace import (
     MAX_BEND,
@@ -347,13 +348,37 @@ def test_a_wire_no_view_can_tell_and_no_strip_confirms_is_dropped(conductors):
         dataclasses.replace(_support(1, 1.0, 0.9, crossing=0, confirming=1), geometry="weak"),
         _support(2, 1.0, 0.9, confirming=0),
     ]
-    kept, kept_sup = _without_unconfirmed(wires, sup)
+    kept, kept_sup = _without_unconfirmed(wires, sup, SupportOptions())
     assert [w.z0 for w in kept] == [wires[1].z0, wires[2].z0]
     assert [w.wire_id for w in kept] == [s.wire_id for s in kept_sup] == [0, 1]
     # A wire the line evidence found is no pairing, and no detector confirms it: it stays.
     faint = dataclasses.replace(sup[0], found_by="line evidence", evidence_sd=9.0)
-    kept, kept_sup = _without_unconfirmed(wires[:1], [faint])
+    kept, kept_sup = _without_unconfirmed(wires[:1], [faint], SupportOptions())
     assert len(kept) == 1 and kept_sup[0].found_by == "line evidence"
+
+
+def test_a_wire_the_views_reject_and_no_strip_confirms_goes_whatever_tracing_found(
+    conductors,
+):
+    """On strong geometry, a wire that the views able to tell reject (its confidence below
+    the bar: kept only because tracing found it) and that no strip confirms on its own is a
+    false pairing (shared multispan seed 12: a copy of a conductor 8.9 m from it, found by
+    tracing at 55 % of its places); one strip confirming it, or the views accepting it,
+    keep it."""
+    from colmap_powerline.pipeline import _without_unconfirmed
+
+    wires = [_curve(t, k, 0.2, 0.8, 0.0) for k, t in enumerate(conductors[:3])]
+    sup = [
+        _support(0, 0.5, 0.55, confirming=0),  # rejected, rescued by tracing: goes
+        _support(1, 0.5, 0.55, confirming=1),  # rejected, but one strip confirms it
+        _support(2, 1.0, 0.9, confirming=0),  # accepted by the views that can tell
+    ]
+    kept, kept_sup = _without_unconfirmed(wires, sup, SupportOptions())
+    assert [w.z0 for w in kept] == [wires[1].z0, wires[2].z0]
+    assert [s.confidence for s in kept_sup] == [0.5, 1.0]
+    # The bar is the caller's: at 0.5 the first is accepted, and stays.
+    kept, _ = _without_unconfirmed(wires, sup, SupportOptions(min_confidence=0.5))
+    assert len(kept) == 3
 
 
 def test_wires_the_views_would_fix_but_do_not_find_are_dropped(conductors):
