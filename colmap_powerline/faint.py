@@ -632,38 +632,37 @@ def _stretch_scores(
 
 
 def _z_scores(mean: F64) -> tuple[F64, npt.NDArray[np.int64], F64]:
-    """(B,) each stretch's evidence at the curve: the highest mean response within NEAR_M of
-    it, less the median of the offsets FAR_M or more from it, in their robust standard
-    deviations (0 where a higher one lies just outside, within FAR_M: the wire runs beside
-    the curve there, and what lies within NEAR_M is the flank of its peak); (B, 2) where in
-    (A, U) that highest lies; and (B,) the evidence on the curve itself, likewise."""
-
-    def within(r: float) -> npt.NDArray[np.bool_]:
-        return (np.abs(OFFSETS_ACROSS)[:, None] <= r + 1e-9) & (
-            np.abs(OFFSETS_UP)[None, :] <= r + 1e-9
-        )
-
-    near, around = within(NEAR_M), within(FAR_M)
-    far = (np.abs(OFFSETS_ACROSS)[:, None] >= FAR_M - 1e-9) | (
-        np.abs(OFFSETS_UP)[None, :] >= FAR_M - 1e-9
-    )
+    """(B,) each stretch's evidence at the curve (:func:`_around` at offset 0); (B, 2)
+    where in (A, U) its highest lies; and (B,) the evidence on the curve itself."""
     n = mean.shape[-1]
-    z = np.zeros(n)
-    on = np.zeros(n)
+    z, on = np.zeros(n), np.zeros(n)
     at = np.zeros((n, 2), np.int64)
-    centre = (int(np.argmin(np.abs(OFFSETS_ACROSS))), int(np.argmin(np.abs(OFFSETS_UP))))
     for b in range(n):
-        m = mean[:, :, b]
-        bg = m[far]
-        med = float(np.median(bg))
-        mad = 1.4826 * float(np.median(np.abs(bg - med))) + 1e-9
-        best = np.where(near, m, -np.inf)
-        at[b] = np.unravel_index(int(np.argmax(best)), m.shape)
-        on[b] = (float(m[centre]) - med) / mad
-        if np.max(np.where(around & ~near, m, -np.inf)) > best[tuple(at[b])] + mad:
-            continue
-        z[b] = (float(best[tuple(at[b])]) - med) / mad
+        z[b], at[b], on[b] = _around(mean[:, :, b], (0.0, 0.0))
     return z, at, on
+
+
+def _around(m: F64, centre: tuple[float, float]) -> tuple[float, npt.NDArray[np.int64], float]:
+    """A stretch's evidence ``m`` (A, U) at the offset ``centre`` (across, up): the highest
+    mean response within NEAR_M of it, less the median of the offsets FAR_M or more from it,
+    in their robust standard deviations (0 where a higher one lies just outside, within
+    FAR_M, by a robust sd: the wire runs beside it there, and what lies within NEAR_M is the
+    flank of its peak); the cell (A, U) of that highest; and the evidence at the cell
+    nearest ``centre`` itself, likewise."""
+    da = np.abs(OFFSETS_ACROSS - centre[0])[:, None]
+    du = np.abs(OFFSETS_UP - centre[1])[None, :]
+    near = (da <= NEAR_M + 1e-9) & (du <= NEAR_M + 1e-9)
+    around = (da <= FAR_M + 1e-9) & (du <= FAR_M + 1e-9)
+    far = (da >= FAR_M - 1e-9) | (du >= FAR_M - 1e-9)
+    bg = m[far]
+    med = float(np.median(bg))
+    mad = 1.4826 * float(np.median(np.abs(bg - med))) + 1e-9
+    best = np.where(near, m, -np.inf)
+    at = np.array(np.unravel_index(int(np.argmax(best)), m.shape), np.int64)
+    on = (float(m[int(np.argmin(da[:, 0])), int(np.argmin(du[0]))]) - med) / mad
+    if np.max(np.where(around & ~near, m, -np.inf)) > best[tuple(at)] + mad:
+        return 0.0, at, on
+    return (float(best[tuple(at)]) - med) / mad, at, on
 
 
 def evidence_stretches(
@@ -683,13 +682,16 @@ def evidence_stretches(
     Each stretch (STRETCH_M) of a span-wire is scored in every view that sees it, the other
     wires' images masked: the normalised line response summed over its samples at the wire's
     curve and at offsets around it (OFFSETS_ACROSS, OFFSETS_UP), over the views together
-    (:func:`_z_scores`, of the wire's polarity where it is measured). An unmeasured stretch
-    is taken where its evidence is ``min_z`` or more in ``min_views`` views or more, next to
-    a measured stretch or a stretch so taken (from its measured stretches on, one after
-    another: a stretch on its own says little). Its points lie on the curve moved to the
-    evidence's peak near it (a parabola through the peak and its neighbours, within
-    NEAR_M), as densely as the wire's own points. ``only``: the indices of the wires
-    judged (all by default; the others' images are masked all the same)."""
+    (:func:`_around`, of the wire's polarity where it is measured), around the curve or,
+    past its measured stretches at either end, around the curve continued as the evidence
+    prefers (:func:`_continued`). An unmeasured stretch is taken where its evidence is
+    ``min_z`` or more in ``min_views`` views or more, next to a measured stretch or a
+    stretch so taken, or past stretches too few views see to judge (from its measured
+    stretches on, one after another: a stretch on its own says little). Its points lie
+    where it was judged, moved to the evidence's peak near it where that stands a robust
+    sd higher (a parabola through the peak and its neighbours, within NEAR_M), as densely
+    as the wire's own points. ``only``: the indices of the wires judged (all by default;
+    the others' images are masked all the same)."""
     plans = [
         _stretches(w, pts_in_world) if only is None or k in only else None
         for k, w in enumerate(wires)
@@ -736,27 +738,42 @@ def evidence_stretches(
         scored = [_z_scores(sign * mean[p]) for p, sign in ((0, 1.0), (1, -1.0))]
         # The wire's polarity: its evidence where it is measured.
         p = int(np.argmax([np.median(z[st.measured]) for z, _, _ in scored]))
-        z, at, on = scored[p]
-        good = (z >= min_z) & (views >= min_views)
+        m = (1.0 if p == 0 else -1.0) * mean[p]
+        # Past the measured stretches at either end, each stretch is judged around the
+        # curve continued as the evidence there says (:func:`_continued`), elsewhere
+        # around the curve itself.
+        centre = _continued(m, st.measured, views, min_views)
+        z, at, on = np.zeros(len(views)), np.zeros((len(views), 2), np.int64), np.zeros(len(views))
+        for b in range(len(views)):
+            z[b], at[b], on[b] = _around(m[:, :, b], (centre[b, 0], centre[b, 1]))
+        # From the measured stretches on, one after another while the evidence holds; a
+        # stretch too few views see to judge is passed over, neither taken nor ending the
+        # run, and so is one stretch short of the bar where the next judged one holds (on
+        # the shared twolines seed 12, a shield's stretches seen by two views, and one at
+        # 3.9 sd, lay between its measured ones and 30 m of stretches at 4.2-7.7 sd).
+        judged = views >= min_views
         taken = np.zeros(len(z), bool)
         for b in np.flatnonzero(st.measured):
             for step in (-1, 1):
-                c = b + step
-                while 0 <= c < len(z) and not st.measured[c] and good[c]:
-                    taken[c] = True
+                c, missed = b + step, 0
+                while 0 <= c < len(z) and not st.measured[c] and not taken[c]:
+                    if judged[c]:
+                        if z[c] < min_z:
+                            missed += 1
+                            if missed > 1:
+                                break
+                        else:
+                            taken[c], missed = True, 0
                     c += step
         if not taken.any():
             continue
         spacing = _spacing(wires[k], pts_in_world)
         new, seen = [], []
         for b in np.flatnonzero(taken):
-            # On the curve, unless the peak beside it stands a robust sd higher (views
-            # overhead hardly tell heights apart: their evidence is flat along "up").
-            da, du = (
-                _peak(((1.0 if p == 0 else -1.0) * mean[p, :, :, b]), at[b])
-                if z[b] - on[b] >= 1.0
-                else (0.0, 0.0)
-            )
+            # Where it is judged, unless the peak beside it stands a robust sd higher
+            # (views overhead hardly tell heights apart: their evidence is flat along "up").
+            cb = (float(centre[b, 0]), float(centre[b, 1]))
+            da, du = _peak(m[:, :, b], at[b], cb) if z[b] - on[b] >= 1.0 else cb
             s = np.arange(st.s[b * STRETCH_SAMPLES] - 0.5 * STRETCH_M / STRETCH_SAMPLES,
                           st.s[(b + 1) * STRETCH_SAMPLES - 1], spacing)  # fmt: skip
             q = wires[k].points(s)
@@ -768,7 +785,8 @@ def evidence_stretches(
         views_out[k] = np.concatenate(seen)
         logger.info(
             "evidence: wire %d: %d of its %d unmeasured %.0f m stretches measured by the "
-            "views' line evidence together (%.1f-%.1f sd, %d-%d views)",
+            "views' line evidence together (%.1f-%.1f sd, %d-%d views), judged up to %.2f "
+            "across and %.2f up from its curve",
             wires[k].wire_id,
             int(taken.sum()),
             int((~st.measured).sum()),
@@ -777,8 +795,83 @@ def evidence_stretches(
             float(z[taken].max()),
             int(views[taken].min()),
             int(views[taken].max()),
+            float(np.abs(centre[taken, 0]).max()),
+            float(centre[taken, 1][np.argmax(np.abs(centre[taken, 1]))]),
         )
     return pts_out, views_out, decoded
+
+
+# The curves past a wire's measured stretches that the evidence may prefer to the curve
+# continued: offsets from it growing from nothing where its measured stretches end, up by
+# a slope and a curvature, across by a slope (a catenary fitted to part of a span is off
+# past it by its slope's and its sag's errors: on the shared twolines seed 12 a shield's,
+# fitted to 40 m of 101, lay 0.3 m under the wire 16 m on and 1.2 m under it at the far
+# tower).
+CONTINUED_UP_SLOPES = np.linspace(-0.06, 0.06, 25)  # per model unit along
+CONTINUED_UP_CURVATURES = np.linspace(-0.0012, 0.0012, 13)  # per unit squared
+CONTINUED_ACROSS_SLOPES = np.linspace(-0.02, 0.02, 9)
+CONTINUED_CLIP = (-3.0, 10.0)  # each stretch's evidence counted within these (robust sd)
+CONTINUED_MIN_RUN = 3  # measured stretches in a row that pin the curve
+
+
+def _continued(m: F64, measured: npt.NDArray[np.bool_], views: F64, min_views: int) -> F64:
+    """(B, 2) the offset (across, up) around which each stretch of a wire is judged: past
+    its measured stretches at either end, the curve of the family above (offsets from
+    nothing where the last run of CONTINUED_MIN_RUN measured stretches ends: on the shared
+    twolines seed 12 a shield measured along 38 m lay 0.25 m off its curve at a 2 m piece
+    traced 13 m past them) whose offsets hold the most evidence over that
+    end's stretches seen by ``min_views`` views or more (``m`` (A, U, B): the mean response
+    at each offset, in robust sd of each stretch's offsets, clipped to CONTINUED_CLIP),
+    where it holds a robust sd a stretch more than the curve continued; elsewhere (0, 0)."""
+    from scipy.interpolate import RegularGridInterpolator
+
+    n = m.shape[-1]
+    centre = np.zeros((n, 2))
+    idx = np.flatnonzero(measured)
+    if len(idx) == 0:
+        return centre
+    slope, curv, across = np.meshgrid(
+        CONTINUED_UP_SLOPES, CONTINUED_UP_CURVATURES, CONTINUED_ACROSS_SLOPES, indexing="ij"
+    )
+    slope, curv, across = slope.ravel(), curv.ravel(), across.ravel()
+    # The curve is pinned where runs of CONTINUED_MIN_RUN measured stretches or more hold
+    # it; a short measured piece past them (tracing's, a few metres on) may lie off it.
+    run = np.convolve(measured.astype(int), np.ones(CONTINUED_MIN_RUN, int), "valid")
+    held = np.flatnonzero(run == CONTINUED_MIN_RUN)
+    first, last = (held[0], held[-1] + CONTINUED_MIN_RUN - 1) if len(held) else (idx[0], idx[-1])
+    for end, side in (
+        (first, np.arange(idx[0] - 1, -1, -1)),
+        (last, np.arange(idx[-1] + 1, n)),
+    ):
+        # How far past the end of the measured stretches that pin the curve each one's
+        # middle lies.
+        t_side = (np.abs(side - end) - 0.5) * STRETCH_M
+        seen = side[views[side] >= min_views]
+        t = t_side[views[side] >= min_views]
+        if len(seen) < 2:
+            continue
+        score = np.zeros(len(slope))
+        on_curve = 0.0
+        for b, tb in zip(seen, t, strict=True):
+            grid = m[:, :, b]
+            med = float(np.median(grid))
+            mad = 1.4826 * float(np.median(np.abs(grid - med))) + 1e-9
+            zmap = np.clip((grid - med) / mad, *CONTINUED_CLIP)
+            look = RegularGridInterpolator(
+                (OFFSETS_ACROSS, OFFSETS_UP), zmap, bounds_error=False, fill_value=np.nan
+            )
+            v = look(np.c_[across * tb, slope * tb + curv * tb * tb])
+            score += np.where(np.isfinite(v), v, CONTINUED_CLIP[0])
+            on_curve += float(look([[0.0, 0.0]])[0])
+        # Only where it stands a robust sd a stretch above the curve continued, as a peak
+        # beside the curve must (views overhead see a wire's evidence as a ridge along
+        # "up", and over its flat top some curve of the family always scores higher).
+        k = int(np.argmax(score))
+        if score[k] - on_curve < len(seen):
+            continue
+        centre[side, 0] = across[k] * t_side
+        centre[side, 1] = slope[k] * t_side + curv[k] * t_side * t_side
+    return centre
 
 
 def _spacing(wire: FittedWire, pts_in_world: F64) -> float:
@@ -788,18 +881,35 @@ def _spacing(wire: FittedWire, pts_in_world: F64) -> float:
     return float(np.clip(np.median(d) if len(d) else 0.05, 0.02, 0.1))
 
 
-def _peak(m: F64, at: npt.NDArray[np.int64]) -> tuple[float, float]:
+def _peak(m: F64, at: npt.NDArray[np.int64], centre: tuple[float, float]) -> tuple[float, float]:
     """The offset (across, up) of the evidence's peak at cell ``at`` of ``m`` (A, U),
-    refined by a parabola through it and its neighbours in each direction (FINE_STEP
-    apart), within NEAR_M."""
+    refined by a parabola through it and its neighbours in each direction, within NEAR_M of
+    ``centre``."""
 
-    def vertex(lo: float, mid: float, hi: float) -> float:
-        den = lo - 2.0 * mid + hi
-        if den >= 0 or not np.isfinite(den):
-            return 0.0
-        return float(np.clip(0.5 * (lo - hi) / den, -0.5, 0.5))
+    def vertex(x: F64, y: tuple[float, float, float]) -> float:
+        # The vertex of the parabola through (x_i, y_i), within half a cell of x[1].
+        (x0, x1, x2), (y0, y1, y2) = x, y
+        d0, d2 = x0 - x1, x2 - x1
+        den = d0 * d2 * (d2 - d0)
+        a = ((y2 - y1) * d0 - (y0 - y1) * d2) / den  # curvature / 2
+        b = ((y0 - y1) * d2 * d2 - (y2 - y1) * d0 * d0) / den
+        if a >= 0 or not np.isfinite(a):
+            return float(x1)
+        return float(np.clip(x1 - b / (2 * a), x1 + 0.5 * d0, x1 + 0.5 * d2))
 
     i, j = int(at[0]), int(at[1])
-    da = OFFSETS_ACROSS[i] + FINE_STEP * vertex(m[i - 1, j], m[i, j], m[i + 1, j])
-    du = OFFSETS_UP[j] + FINE_STEP * vertex(m[i, j - 1], m[i, j], m[i, j + 1])
-    return float(np.clip(da, -NEAR_M, NEAR_M)), float(np.clip(du, -NEAR_M, NEAR_M))
+    A, U = OFFSETS_ACROSS, OFFSETS_UP
+    da = (
+        vertex(A[i - 1 : i + 2], (m[i - 1, j], m[i, j], m[i + 1, j]))
+        if 0 < i < len(A) - 1
+        else float(A[i])
+    )
+    du = (
+        vertex(U[j - 1 : j + 2], (m[i, j - 1], m[i, j], m[i, j + 1]))
+        if 0 < j < len(U) - 1
+        else float(U[j])
+    )
+    return (
+        float(np.clip(da, centre[0] - NEAR_M, centre[0] + NEAR_M)),
+        float(np.clip(du, centre[1] - NEAR_M, centre[1] + NEAR_M)),
+    )
