@@ -746,25 +746,7 @@ def evidence_stretches(
         z, at, on = np.zeros(len(views)), np.zeros((len(views), 2), np.int64), np.zeros(len(views))
         for b in range(len(views)):
             z[b], at[b], on[b] = _around(m[:, :, b], (centre[b, 0], centre[b, 1]))
-        # From the measured stretches on, one after another while the evidence holds; a
-        # stretch too few views see to judge is passed over, neither taken nor ending the
-        # run, and so is one stretch short of the bar where the next judged one holds (on
-        # the shared twolines seed 12, a shield's stretches seen by two views, and one at
-        # 3.9 sd, lay between its measured ones and 30 m of stretches at 4.2-7.7 sd).
-        judged = views >= min_views
-        taken = np.zeros(len(z), bool)
-        for b in np.flatnonzero(st.measured):
-            for step in (-1, 1):
-                c, missed = b + step, 0
-                while 0 <= c < len(z) and not st.measured[c] and not taken[c]:
-                    if judged[c]:
-                        if z[c] < min_z:
-                            missed += 1
-                            if missed > 1:
-                                break
-                        else:
-                            taken[c], missed = True, 0
-                    c += step
+        taken = _walked(z >= min_z, views >= min_views, st.measured)
         if not taken.any():
             continue
         spacing = _spacing(wires[k], pts_in_world)
@@ -872,6 +854,31 @@ def _continued(m: F64, measured: npt.NDArray[np.bool_], views: F64, min_views: i
         centre[side, 0] = across[k] * t_side
         centre[side, 1] = slope[k] * t_side + curv[k] * t_side * t_side
     return centre
+
+
+def _walked(
+    holds: npt.NDArray[np.bool_], judged: npt.NDArray[np.bool_], measured: npt.NDArray[np.bool_]
+) -> npt.NDArray[np.bool_]:
+    """(B,) the stretches taken: from the measured stretches on, one after another while
+    the evidence ``holds``. A stretch too few views see (not ``judged``) is passed over,
+    neither taken nor ending the run, and so is one stretch that does not hold where the
+    next judged one does (on the shared twolines seed 12, a shield's stretches seen by two
+    views, and one at 3.9 sd, lay between its measured ones and 30 m of stretches at
+    4.2-7.7 sd); two in a row end it."""
+    taken = np.zeros(len(holds), bool)
+    for b in np.flatnonzero(measured):
+        for step in (-1, 1):
+            c, missed = b + step, 0
+            while 0 <= c < len(holds) and not measured[c] and not taken[c]:
+                if judged[c]:
+                    if not holds[c]:
+                        missed += 1
+                        if missed > 1:
+                            break
+                    else:
+                        taken[c], missed = True, 0
+                c += step
+    return taken
 
 
 def _spacing(wire: FittedWire, pts_in_world: F64) -> float:

@@ -237,3 +237,25 @@ def test_a_wire_drifting_off_its_curve_continued_is_measured_where_the_evidence_
     d = distance_to_polyline(new[0][(s > -5.0) & (s < 7.5)], turned.polyline(0.02))
     assert np.median(d) < 0.03 and d.max() < 0.06  # 2.0, 3.7 cm (4.3, 10.0 judged around the curve)
     assert (views[0] >= 3).all()
+
+
+def test_stretches_are_taken_from_the_measured_ones_on_past_unjudged_ones_and_one_miss():
+    """From a measured stretch outwards, stretches are taken while the evidence holds; a
+    stretch too few views see is passed over (neither taken nor ending the run), and so is
+    one stretch that does not hold where the next judged one does; two in a row end it."""
+    from colmap_powerline.faint import _walked
+
+    T, F = True, False
+    measured = np.array([T, T, F, F, F, F, F, F, F, F, F])
+    holds = np.array([T, T, T, F, T, F, T, F, F, T, T])
+    judged = np.array([T, T, T, T, T, F, T, T, T, T, T])
+    taken = _walked(holds, judged, measured)
+    # 2 holds; 3 misses, 4 holds (one miss passed over); 5 unjudged; 6 holds; 7, 8 miss:
+    # the run ends, and 9, 10 are not reached.
+    assert taken.tolist() == [F, F, T, F, T, F, T, F, F, F, F]
+    # Nothing on its own: without a measured stretch nothing is taken.
+    assert not _walked(holds, judged, np.zeros(11, bool)).any()
+    # Both ways from a measured stretch in the middle.
+    mid = np.zeros(11, bool)
+    mid[5] = True
+    assert _walked(np.ones(11, bool), np.ones(11, bool), mid).sum() == 10
