@@ -742,11 +742,12 @@ def evidence_stretches(
         # Past the measured stretches at either end, each stretch is judged around the
         # curve continued as the evidence there says (:func:`_continued`), elsewhere
         # around the curve itself.
-        centre = _continued(m, st.measured, views, min_views)
+        centre, reach = _continued(m, st.measured, views, min_views)
         z, at, on = np.zeros(len(views)), np.zeros((len(views), 2), np.int64), np.zeros(len(views))
         for b in range(len(views)):
             z[b], at[b], on[b] = _around(m[:, :, b], (centre[b, 0], centre[b, 1]))
-        taken = _walked(z >= min_z, views >= min_views, st.measured)
+        # Out of reach, a stretch counts as one that does not hold (two end the run).
+        taken = _walked((z >= min_z) & reach, (views >= min_views) | ~reach, st.measured)
         if not taken.any():
             continue
         spacing = _spacing(wires[k], pts_in_world)
@@ -796,22 +797,31 @@ CONTINUED_CLIP = (-3.0, 10.0)  # each stretch's evidence counted within these (r
 CONTINUED_MIN_RUN = 3  # measured stretches in a row that pin the curve
 
 
-def _continued(m: F64, measured: npt.NDArray[np.bool_], views: F64, min_views: int) -> F64:
-    """(B, 2) the offset (across, up) around which each stretch of a wire is judged: past
+def _continued(
+    m: F64, measured: npt.NDArray[np.bool_], views: F64, min_views: int
+) -> tuple[F64, npt.NDArray[np.bool_]]:
+    """(B, 2) the offset (across, up) around which each stretch of a wire is judged, and
+    (B,) whether it lies within reach of the measured ones. Past
     its measured stretches at either end, the curve of the family above (offsets from
     nothing where the last run of CONTINUED_MIN_RUN measured stretches ends: on the shared
     twolines seed 12 a shield measured along 38 m lay 0.25 m off its curve at a 2 m piece
     traced 13 m past them) whose offsets hold the most evidence over that
     end's stretches seen by ``min_views`` views or more (``m`` (A, U, B): the mean response
     at each offset, in robust sd of each stretch's offsets, clipped to CONTINUED_CLIP),
-    where it holds a robust sd a stretch more than the curve continued; elsewhere (0, 0)."""
+    where it holds a robust sd a stretch more than the curve continued (of those within a
+    robust sd a stretch of the best, the one nearest the curve); elsewhere (0, 0).
+    Past the measured stretches, a stretch is within reach no farther from them than they
+    reach along the wire (a curve fitted to a length of wire foretells it about as far
+    again: shared cross seed 6's shield, measured along 20 m, continued 30-50 m past them
+    lay 0.3-0.7 m off the wire, and stretches of chance evidence there were taken)."""
     from scipy.interpolate import RegularGridInterpolator
 
     n = m.shape[-1]
     centre = np.zeros((n, 2))
+    reach = np.ones(n, bool)
     idx = np.flatnonzero(measured)
     if len(idx) == 0:
-        return centre
+        return centre, reach
     slope, curv, across = np.meshgrid(
         CONTINUED_UP_SLOPES, CONTINUED_UP_CURVATURES, CONTINUED_ACROSS_SLOPES, indexing="ij"
     )
@@ -828,8 +838,10 @@ def _continued(m: F64, measured: npt.NDArray[np.bool_], views: F64, min_views: i
         # How far past the end of the measured stretches that pin the curve each one's
         # middle lies.
         t_side = (np.abs(side - end) - 0.5) * STRETCH_M
-        seen = side[views[side] >= min_views]
-        t = t_side[views[side] >= min_views]
+        # No farther past them than the measured stretches reach along the wire.
+        reach[side] = t_side <= (idx[-1] - idx[0] + 1) * STRETCH_M
+        seen = side[(views[side] >= min_views) & reach[side]]
+        t = t_side[(views[side] >= min_views) & reach[side]]
         if len(seen) < 2:
             continue
         score = np.zeros(len(slope))
@@ -848,12 +860,18 @@ def _continued(m: F64, measured: npt.NDArray[np.bool_], views: F64, min_views: i
         # Only where it stands a robust sd a stretch above the curve continued, as a peak
         # beside the curve must (views overhead see a wire's evidence as a ridge along
         # "up", and over its flat top some curve of the family always scores higher).
-        k = int(np.argmax(score))
-        if score[k] - on_curve < len(seen):
+        # Of the curves the evidence holds about as well as the best (within a robust sd a
+        # stretch), the one nearest the curve continued (over the flat top of the ridge
+        # the best lies anywhere along "up").
+        near = score >= max(float(score.max()) - len(seen), on_curve + len(seen))
+        if not near.any():
             continue
+        far_t = float(t.max())
+        departure = np.abs(across * far_t) + np.abs(slope * far_t + curv * far_t * far_t)
+        k = int(np.flatnonzero(near)[np.argmin(departure[near])])
         centre[side, 0] = across[k] * t_side
         centre[side, 1] = slope[k] * t_side + curv[k] * t_side * t_side
-    return centre
+    return centre, reach
 
 
 def _walked(
