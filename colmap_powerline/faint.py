@@ -60,7 +60,8 @@ from scipy.ndimage import median_filter
 from .detect import DetectOptions, _to_gray, line_response
 from .geometry import across_of
 from .scene import Scene, SceneImage, read_image
-from .wires import FittedWire
+from .trace import image_normals
+from .wires import FittedWire, WiresOptions
 
 logger = logging.getLogger(__name__)
 
@@ -674,6 +675,7 @@ def evidence_stretches(
     min_views: int,
     num_threads: int,
     only: Collection[int] | None = None,
+    max_sigma: float = WiresOptions().inlier_distance / 2.33,
 ) -> tuple[list[F64], list[npt.NDArray[np.int32]], list[Path]]:
     """Per wire, the points (N, 3) the views' summed line evidence measures along its
     unmeasured stretches between its attachments, and how many views see each (N,); and
@@ -685,13 +687,14 @@ def evidence_stretches(
     (:func:`_around`, of the wire's polarity where it is measured), around the curve or,
     past its measured stretches at either end, around the curve continued as the evidence
     prefers (:func:`_continued`). An unmeasured stretch is taken where its evidence is
-    ``min_z`` or more in ``min_views`` views or more, next to a measured stretch or a
-    stretch so taken, or past stretches too few views see to judge (from its measured
-    stretches on, one after another: a stretch on its own says little). Its points lie
-    where it was judged, moved to the evidence's peak near it where that stands a robust
-    sd higher (a parabola through the peak and its neighbours, within NEAR_M), as densely
-    as the wire's own points. ``only``: the indices of the wires judged (all by default;
-    the others' images are masked all the same)."""
+    ``min_z`` or more in ``min_views`` views or more that would fix the wire there (to
+    ``max_sigma`` at MEASURABLE_SIGMA_PX of image noise, as tracing's), next to a measured
+    stretch or a stretch so taken, or past stretches those views do not fix (from its
+    measured stretches on, one after another: a stretch on its own says little). Its
+    points lie where it was judged, moved to the evidence's peak near it where that stands
+    a robust sd higher (a parabola through the peak and its neighbours, within NEAR_M), as
+    densely as the wire's own points. ``only``: the indices of the wires judged (all by
+    default; the others' images are masked all the same)."""
     plans = [
         _stretches(w, pts_in_world) if only is None or k in only else None
         for k, w in enumerate(wires)
@@ -702,9 +705,9 @@ def evidence_stretches(
     if not todo:
         return pts_out, views_out, []
 
-    def one(image: SceneImage) -> dict[int, tuple[F64, F64, F64]]:
+    def one(image: SceneImage) -> dict[int, tuple[F64, F64, F64, F64]]:
         grey: F32 | None = None
-        out: dict[int, tuple[F64, F64, F64]] = {}
+        out: dict[int, tuple[F64, F64, F64, F64]] = {}
         for k in todo:
             st = plans[k]
             assert st is not None
@@ -716,7 +719,7 @@ def evidence_stretches(
             others = [w for j, w in enumerate(wires) if j != k]
             res = _stretch_scores(image, grey, wires[k], others, st, detect)
             if res is not None:
-                out[k] = res
+                out[k] = (*res, _fixing(image, wires[k], st, res[2] > 0))
         return out
 
     totals: dict[int, list[F64]] = {}
@@ -725,13 +728,12 @@ def evidence_stretches(
         for image, res in zip(scene.images, pool.map(one, scene.images), strict=True):
             if res:
                 decoded.append(image.path)
-            for k, (sums, count, sees) in res.items():
+            for k, parts in res.items():
                 if k not in totals:
-                    totals[k] = [np.zeros_like(sums), np.zeros_like(count), np.zeros_like(sees)]
-                totals[k][0] += sums
-                totals[k][1] += count
-                totals[k][2] += sees
-    for k, (sums, count, views) in totals.items():
+                    totals[k] = [np.zeros_like(x) for x in parts]
+                for total, x in zip(totals[k], parts, strict=True):
+                    total += x
+    for k, (sums, count, views, normal) in totals.items():
         st = plans[k]
         assert st is not None
         mean = sums / np.maximum(count, 1)[None]
@@ -746,8 +748,16 @@ def evidence_stretches(
         z, at, on = np.zeros(len(views)), np.zeros((len(views), 2), np.int64), np.zeros(len(views))
         for b in range(len(views)):
             z[b], at[b], on[b] = _around(m[:, :, b], (centre[b, 0], centre[b, 1]))
-        # Out of reach, a stretch counts as one that does not hold (two end the run).
-        taken = _walked((z >= min_z) & reach, (views >= min_views) | ~reach, st.measured)
+        # A stretch is judged where the views that see it would fix the wire, as tracing
+        # asks (its points are measured where the evidence peaks; where the views hardly
+        # tell heights apart, the peak lies anywhere along "up": the package's `angle`
+        # layout, a shield's stretches near its end tower, 9 cm high on average, pulled its
+        # sag from 12 to 38 cm off). Out of reach, a stretch counts as one that does not
+        # hold (two end the run).
+        with np.errstate(divide="ignore", invalid="ignore"):
+            sigma = MEASURABLE_SIGMA_PX / np.sqrt(np.linalg.eigvalsh(normal)[:, 0])
+        fixed = (views >= min_views) & (sigma <= max_sigma)
+        taken = _walked((z >= min_z) & reach, fixed | ~reach, st.measured)
         if not taken.any():
             continue
         spacing = _spacing(wires[k], pts_in_world)
@@ -795,6 +805,28 @@ CONTINUED_UP_CURVATURES = np.linspace(-0.0012, 0.0012, 13)  # per unit squared
 CONTINUED_ACROSS_SLOPES = np.linspace(-0.02, 0.02, 9)
 CONTINUED_CLIP = (-3.0, 10.0)  # each stretch's evidence counted within these (robust sd)
 CONTINUED_MIN_RUN = 3  # measured stretches in a row that pin the curve
+
+
+# The image noise of a wire centre (px) at which the views' fix of a stretch is judged, as
+# for the flight's measurable places (:func:`evaluate.measurable_points`).
+MEASURABLE_SIGMA_PX = 0.44
+
+
+def _fixing(view: SceneImage, wire: FittedWire, st: _Stretches, sees: npt.NDArray[np.bool_]) -> F64:
+    """(B, 2, 2) what ``view`` adds to each stretch's normal matrix in the two offsets
+    across the wire (horizontal, up) where it ``sees`` the stretch: the row of its
+    projection's Jacobian across the wire's image, at the stretch's middle."""
+    n = len(st.measured)
+    mid = st.s[np.arange(n) * STRETCH_SAMPLES + STRETCH_SAMPLES // 2]
+    pts = wire.points(mid)
+    tangent = wire.points(mid + 0.05) - wire.points(mid - 0.05)
+    tangent /= np.linalg.norm(tangent, axis=1, keepdims=True)
+    horizontal = np.c_[tangent[:, 1], -tangent[:, 0], np.zeros(n)]
+    horizontal /= np.maximum(np.linalg.norm(horizontal, axis=1, keepdims=True), 1e-12)
+    basis = np.stack([horizontal, np.cross(horizontal, tangent)], axis=1)  # (B, 2, 3)
+    _, row = image_normals(view, pts, tangent)
+    a = np.einsum("nj,nkj->nk", row, basis) * sees[:, None]
+    return a[:, :, None] * a[:, None, :]
 
 
 def _continued(
