@@ -60,8 +60,7 @@ from scipy.ndimage import median_filter
 from .detect import DetectOptions, _to_gray, line_response
 from .geometry import across_of
 from .scene import Scene, SceneImage, read_image
-from .trace import image_normals
-from .wires import FittedWire, WiresOptions
+from .wires import FittedWire
 
 logger = logging.getLogger(__name__)
 
@@ -675,7 +674,6 @@ def evidence_stretches(
     min_views: int,
     num_threads: int,
     only: Collection[int] | None = None,
-    max_sigma: float = WiresOptions().inlier_distance / 2.33,
 ) -> tuple[list[F64], list[npt.NDArray[np.int32]], list[Path]]:
     """Per wire, the points (N, 3) the views' summed line evidence measures along its
     unmeasured stretches between its attachments, and how many views see each (N,); and
@@ -687,10 +685,9 @@ def evidence_stretches(
     (:func:`_around`, of the wire's polarity where it is measured), around the curve or,
     past its measured stretches at either end, around the curve continued as the evidence
     prefers (:func:`_continued`). An unmeasured stretch is taken where its evidence is
-    ``min_z`` or more in ``min_views`` views or more that would fix the wire there (to
-    ``max_sigma`` at MEASURABLE_SIGMA_PX of image noise, as tracing's), next to a measured
-    stretch or a stretch so taken, or past stretches those views do not fix (from its
-    measured stretches on, one after another: a stretch on its own says little). Its
+    ``min_z`` or more in ``min_views`` views or more, next to a measured stretch or a
+    stretch so taken, or past stretches too few views see to judge (from its measured
+    stretches on, one after another: a stretch on its own says little). Its
     points lie where it was judged, moved to the evidence's peak near it where that stands
     a robust sd higher (a parabola through the peak and its neighbours, within NEAR_M), as
     densely as the wire's own points. ``only``: the indices of the wires judged (all by
@@ -705,9 +702,9 @@ def evidence_stretches(
     if not todo:
         return pts_out, views_out, []
 
-    def one(image: SceneImage) -> dict[int, tuple[F64, F64, F64, F64]]:
+    def one(image: SceneImage) -> dict[int, tuple[F64, F64, F64]]:
         grey: F32 | None = None
-        out: dict[int, tuple[F64, F64, F64, F64]] = {}
+        out: dict[int, tuple[F64, F64, F64]] = {}
         for k in todo:
             st = plans[k]
             assert st is not None
@@ -719,7 +716,7 @@ def evidence_stretches(
             others = [w for j, w in enumerate(wires) if j != k]
             res = _stretch_scores(image, grey, wires[k], others, st, detect)
             if res is not None:
-                out[k] = (*res, _fixing(image, wires[k], st, res[2] > 0))
+                out[k] = res
         return out
 
     totals: dict[int, list[F64]] = {}
@@ -733,7 +730,7 @@ def evidence_stretches(
                     totals[k] = [np.zeros_like(x) for x in parts]
                 for total, x in zip(totals[k], parts, strict=True):
                     total += x
-    for k, (sums, count, views, normal) in totals.items():
+    for k, (sums, count, views) in totals.items():
         st = plans[k]
         assert st is not None
         mean = sums / np.maximum(count, 1)[None]
@@ -745,19 +742,17 @@ def evidence_stretches(
         # curve continued as the evidence there says (:func:`_continued`), elsewhere
         # around the curve itself.
         centre, reach = _continued(m, st.measured, views, min_views)
-        z, at, on = np.zeros(len(views)), np.zeros((len(views), 2), np.int64), np.zeros(len(views))
-        for b in range(len(views)):
+        z, at, on = (x.copy() for x in scored[p])
+        # Around the curve continued where the evidence holds on it; around the curve the
+        # evidence prefers only where it does not (on the package's `angle` layout, judged
+        # around the preferred curve everywhere, a shield's stretches were taken up to
+        # 13 cm higher, which pulled its sag from 12 to 28 cm off).
+        family = (z < min_z) & centre.any(axis=1)
+        for b in np.flatnonzero(family):
             z[b], at[b], on[b] = _around(m[:, :, b], (centre[b, 0], centre[b, 1]))
-        # A stretch is judged where the views that see it would fix the wire, as tracing
-        # asks (its points are measured where the evidence peaks; where the views hardly
-        # tell heights apart, the peak lies anywhere along "up": the package's `angle`
-        # layout, a shield's stretches near its end tower, 9 cm high on average, pulled its
-        # sag from 12 to 38 cm off). Out of reach, a stretch counts as one that does not
-        # hold (two end the run).
-        with np.errstate(divide="ignore", invalid="ignore"):
-            sigma = MEASURABLE_SIGMA_PX / np.sqrt(np.linalg.eigvalsh(normal)[:, 0])
-        fixed = (views >= min_views) & (sigma <= max_sigma)
-        taken = _walked((z >= min_z) & reach, fixed | ~reach, st.measured)
+        centre[~family] = 0.0
+        # Out of reach, a stretch counts as one that does not hold (two end the run).
+        taken = _walked((z >= min_z) & reach, (views >= min_views) | ~reach, st.measured)
         if not taken.any():
             continue
         spacing = _spacing(wires[k], pts_in_world)
@@ -805,28 +800,6 @@ CONTINUED_UP_CURVATURES = np.linspace(-0.0012, 0.0012, 13)  # per unit squared
 CONTINUED_ACROSS_SLOPES = np.linspace(-0.02, 0.02, 9)
 CONTINUED_CLIP = (-3.0, 10.0)  # each stretch's evidence counted within these (robust sd)
 CONTINUED_MIN_RUN = 3  # measured stretches in a row that pin the curve
-
-
-# The image noise of a wire centre (px) at which the views' fix of a stretch is judged, as
-# for the flight's measurable places (:func:`evaluate.measurable_points`).
-MEASURABLE_SIGMA_PX = 0.44
-
-
-def _fixing(view: SceneImage, wire: FittedWire, st: _Stretches, sees: npt.NDArray[np.bool_]) -> F64:
-    """(B, 2, 2) what ``view`` adds to each stretch's normal matrix in the two offsets
-    across the wire (horizontal, up) where it ``sees`` the stretch: the row of its
-    projection's Jacobian across the wire's image, at the stretch's middle."""
-    n = len(st.measured)
-    mid = st.s[np.arange(n) * STRETCH_SAMPLES + STRETCH_SAMPLES // 2]
-    pts = wire.points(mid)
-    tangent = wire.points(mid + 0.05) - wire.points(mid - 0.05)
-    tangent /= np.linalg.norm(tangent, axis=1, keepdims=True)
-    horizontal = np.c_[tangent[:, 1], -tangent[:, 0], np.zeros(n)]
-    horizontal /= np.maximum(np.linalg.norm(horizontal, axis=1, keepdims=True), 1e-12)
-    basis = np.stack([horizontal, np.cross(horizontal, tangent)], axis=1)  # (B, 2, 3)
-    _, row = image_normals(view, pts, tangent)
-    a = np.einsum("nj,nkj->nk", row, basis) * sees[:, None]
-    return a[:, :, None] * a[:, None, :]
 
 
 def _continued(

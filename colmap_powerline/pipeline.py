@@ -1699,7 +1699,6 @@ def _measured_by_evidence(
             MIN_VIEWS,
             options.verify.num_threads,
             only=todo,
-            max_sigma=options.wires.inlier_distance / 2.33,  # as tracing's
         )
         decoded += dec
         todo = {k for k, p in enumerate(new) if len(p)}

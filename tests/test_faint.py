@@ -18,7 +18,7 @@ from colmap_powerline.faint import (
     sweep_refs,
 )
 from colmap_powerline.scene import Scene, SceneImage
-from colmap_powerline.wires import FittedWire, WiresOptions
+from colmap_powerline.wires import FittedWire
 
 W, H, F = 600, 600, 600.0  # px; 26 m below the views (the wires) a pixel is 4.3 cm
 
@@ -259,29 +259,3 @@ def test_stretches_are_taken_from_the_measured_ones_on_past_unjudged_ones_and_on
     mid = np.zeros(11, bool)
     mid[5] = True
     assert _walked(np.ones(11, bool), np.ones(11, bool), mid).sum() == 10
-
-
-def test_a_stretch_is_fixed_only_by_views_from_positions_across_the_wire(tmp_path):
-    """What the views add to a stretch's normal matrix (:func:`faint._fixing`): views of one
-    strip straight over the wire fix it across but hardly in height; the three strips
-    together fix it in both, within tracing's bound at the image noise of a wire centre."""
-    from colmap_powerline.faint import MEASURABLE_SIGMA_PX, _fixing, _stretches
-
-    wire = _wire(0, 0.0, 24.0, 0.8)
-    scene = _scene(tmp_path, [])
-    measured, pts = _measured_to(wire, -6.0)
-    st = _stretches(measured, pts)
-    sees = np.ones(len(st.measured), bool)
-
-    def sigma(views) -> np.ndarray:
-        normal = sum(_fixing(v, measured, st, sees) for v in views)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            return MEASURABLE_SIGMA_PX / np.sqrt(np.linalg.eigvalsh(normal)[:, 0])
-
-    middle = [v for v in scene.images if abs(v.center_in_world[1]) < 1.0]
-    assert len(middle) == 5
-    bound = WiresOptions().inlier_distance / 2.33
-    assert (sigma(middle) > 3 * bound).all()  # one strip over the wire: not in height
-    assert (sigma(scene.images) < bound).all()  # three strips 8 m apart: fixed
-    # A view that does not see a stretch adds nothing there.
-    assert not _fixing(scene.images[0], measured, st, np.zeros(len(sees), bool)).any()
