@@ -214,13 +214,14 @@ def test_a_stretch_whose_wire_runs_beside_the_curve_is_measured_on_the_wire_or_n
 
 def test_a_wire_drifting_off_its_curve_continued_is_measured_where_the_evidence_leads(tmp_path):
     """A span-wire measured along x = -19..-6 whose curve, continued, drifts off the wire
-    the images show: from x = -6 the wire turns 1.5 % away across (0.21 m at x = 8; a
+    the images show: from x = -6 the wire turns 2 % away across (0.28 m at x = 8; a
     catenary fitted to part of its span is off past it by its slope's error). Judged around
-    the curve itself, its stretches were taken at the edge of the 15 cm around it (up to
-    10 cm off the wire); judged around the curve of the family the evidence prefers
-    (:func:`faint._continued`), they are measured on the wire."""
+    the curve alone, its stretches end where the wire leaves the 15 cm around it (x = 3);
+    judged, where the evidence does not hold on the curve, around the curve of the family
+    the evidence prefers (:func:`faint._continued`), they are measured on (to x = 7), on
+    the wire."""
     wire = _wire(0, 0.0, 24.0, 0.8)
-    turn = np.arctan(0.015)
+    turn = np.arctan(0.02)
     turned = dataclasses.replace(
         wire,
         plane_origin_xy=np.array([-6.0, 0.0]),
@@ -233,9 +234,9 @@ def test_a_wire_drifting_off_its_curve_continued_is_measured_where_the_evidence_
     measured, pts = _measured_to(wire, -6.0)
     new, views, _ = evidence_stretches(scene, [measured], pts, DetectOptions(), 4.0, 3, 1)
     s = measured.plane_coords(new[0])[0]
-    assert s.min() > -6.5 and 6.0 < s.max() < 8.0 + 2.0
+    assert s.min() > -6.5 and 5.0 < s.max() < 8.0 + 2.0  # 6.9 (2.9 around the curve)
     d = distance_to_polyline(new[0][(s > -5.0) & (s < 7.5)], turned.polyline(0.02))
-    assert np.median(d) < 0.03 and d.max() < 0.06  # 2.0, 3.7 cm (4.3, 10.0 judged around the curve)
+    assert np.median(d) < 0.04 and d.max() < 0.08  # 2.7, 5.8 cm
     assert (views[0] >= 3).all()
 
 
