@@ -55,6 +55,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 import numpy.typing as npt
+from scipy.interpolate import RegularGridInterpolator
 from scipy.ndimage import median_filter
 
 from .detect import DetectOptions, _to_gray, line_response
@@ -819,8 +820,6 @@ def _continued(
     reach along the wire (a curve fitted to a length of wire foretells it about as far
     again: shared cross seed 6's shield, measured along 20 m, continued 30-50 m past them
     lay 0.3-0.7 m off the wire, and stretches of chance evidence there were taken)."""
-    from scipy.interpolate import RegularGridInterpolator
-
     n = m.shape[-1]
     centre = np.zeros((n, 2))
     reach = np.ones(n, bool)
