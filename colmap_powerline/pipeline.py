@@ -2371,30 +2371,24 @@ def _without_unconfirmed(
     it (it is too faint for the detector): it stays."""
     keep = []
     for k, (w, s) in enumerate(zip(wires, supports, strict=True)):
-        if s.confirming_strips == 0 and s.found_by == "pairs" and s.geometry == "weak":
-            logger.info(
-                "support: wire %d dropped (%.0f m): no view can tell it from a false pairing "
-                "and no strip confirms it on its own (each sees it only where other wires "
-                "lie, or misses it)",
-                w.wire_id,
-                w.s_range[1] - w.s_range[0],
-            )
-        elif (
-            s.confirming_strips == 0
-            and s.found_by == "pairs"
-            and s.confidence is not None
-            and not support.accepts(s.confidence)
-        ):
-            logger.info(
-                "support: wire %d dropped (%.0f m): the views that can tell it from a false "
-                "pairing reject it (confidence %s) and no strip confirms it on its own (each "
-                "sees it only where other wires lie, or misses it)",
-                w.wire_id,
-                w.s_range[1] - w.s_range[0],
-                f"{s.confidence:.3f}",
+        unconfirmed = s.confirming_strips == 0 and s.found_by == "pairs"
+        if unconfirmed and s.geometry == "weak":
+            why = "no view can tell it from a false pairing"
+        elif unconfirmed and s.confidence is not None and not support.accepts(s.confidence):
+            why = (
+                "the views that can tell it from a false pairing reject it (confidence "
+                f"{s.confidence:.3f})"
             )
         else:
             keep.append(k)
+            continue
+        logger.info(
+            "support: wire %d dropped (%.0f m): %s and no strip confirms it on its own (each "
+            "sees it only where other wires lie, or misses it)",
+            w.wire_id,
+            w.s_range[1] - w.s_range[0],
+            why,
+        )
     return _kept(wires, supports, keep)
 
 
