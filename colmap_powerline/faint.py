@@ -814,8 +814,7 @@ def _continued(
     traced 13 m past them) whose offsets hold the most evidence over that
     end's stretches seen by ``min_views`` views or more (``m`` (A, U, B): the mean response
     at each offset, in robust sd of each stretch's offsets, clipped to CONTINUED_CLIP),
-    where it holds a robust sd a stretch more than the curve continued (of those within a
-    robust sd a stretch of the best, the one nearest the curve); elsewhere (0, 0).
+    where it holds a robust sd a stretch more than the curve continued; elsewhere (0, 0).
     Past the measured stretches, a stretch is within reach no farther from them than they
     reach along the wire (a curve fitted to a length of wire foretells it about as far
     again: shared cross seed 6's shield, measured along 20 m, continued 30-50 m past them
@@ -864,15 +863,9 @@ def _continued(
         # Only where it stands a robust sd a stretch above the curve continued, as a peak
         # beside the curve must (views overhead see a wire's evidence as a ridge along
         # "up", and over its flat top some curve of the family always scores higher).
-        # Of the curves the evidence holds about as well as the best (within a robust sd a
-        # stretch), the one nearest the curve continued (over the flat top of the ridge
-        # the best lies anywhere along "up").
-        near = score >= max(float(score.max()) - len(seen), on_curve + len(seen))
-        if not near.any():
+        k = int(np.argmax(score))
+        if score[k] < on_curve + len(seen):
             continue
-        far_t = float(t.max())
-        departure = np.abs(across * far_t) + np.abs(slope * far_t + curv * far_t * far_t)
-        k = int(np.flatnonzero(near)[np.argmin(departure[near])])
         centre[side, 0] = across[k] * t_side
         centre[side, 1] = slope[k] * t_side + curv[k] * t_side * t_side
     return centre, reach
