@@ -863,6 +863,9 @@ def _continued(
         # Only where it stands a robust sd a stretch above the curve continued, as a peak
         # beside the curve must (views overhead see a wire's evidence as a ridge along
         # "up", and over its flat top some curve of the family always scores higher).
+        # The best of the family: the one nearest the curve at the farthest stretch among
+        # those about as good chose curves climbing with the evidence and coming back down
+        # onto the curve there (shared twolines seed 12, its span's ends moved 0.1 m).
         k = int(np.argmax(score))
         if score[k] < on_curve + len(seen):
             continue
