@@ -1689,10 +1689,17 @@ def _measured_by_evidence(
     out = list(wires)
     decoded: list[Path] = []
     todo: set[int] = set(range(len(wires)))
+    gained: list[npt.NDArray[np.int64]] = [np.zeros(0, np.int64) for _ in wires]
     for _ in range(EVIDENCE_ROUNDS):
+        # A stretch taken in an earlier round stays taken (measured), wherever the refitted
+        # curve left its points: each round judges the rest, on the refitted curve.
+        judged = [
+            dataclasses.replace(w, point_indices=np.union1d(w.point_indices, g))
+            for w, g in zip(out, gained, strict=True)
+        ]
         new, views, dec = evidence_stretches(
             scene,
-            out,
+            judged,
             verified.pts_in_world,
             options.detect,
             options.trace.stretch_min_z,
@@ -1705,13 +1712,13 @@ def _measured_by_evidence(
         if not todo:
             break
         start = len(verified)
-        kept_all: set[int] = set()
         verified = verified.with_traced(np.concatenate(new), np.concatenate(views))
         for k, p in enumerate(new):
             if len(p) == 0:
                 continue
             added = np.arange(start, start + len(p))
             start += len(p)
+            gained[k] = np.r_[gained[k], added]
             along, _ = plan_axes(corridors[legs[k]].azimuth_deg)
             fit = refit(
                 out[k], verified.pts_in_world, np.r_[out[k].point_indices, added], along,
@@ -1719,11 +1726,11 @@ def _measured_by_evidence(
             )  # fmt: skip
             drawn = np.sort(fit.plane_coords(out[k].points(np.array(out[k].s_range)))[0])
             out[k] = dataclasses.replace(fit, s_range=(float(drawn[0]), float(drawn[1])))
-            if np.isin(added, fit.point_indices).all():
-                kept_all.add(k)
-        # Judged again: the wires whose curves took all of what they gained (a stretch whose
-        # points the refitted curve leaves would be judged, and taken, again).
-        todo = kept_all
+        # Judged again: every wire that gained (its refitted curve lies closer to the wire
+        # past what it was fitted to before, and what it now reaches reaches farther: the
+        # release before judged again only wires whose curves took all they gained, and
+        # shared twolines seed 12's shield stopped where its first round's reach ended).
+        todo = {k for k, p in enumerate(new) if len(p)}
     return out, verified, decoded
 
 
