@@ -1708,6 +1708,10 @@ def _measured_by_evidence(
             only=todo,
         )
         decoded += dec
+        # Judged again: every wire that gained (its refitted curve lies closer to the wire
+        # past what it was fitted to before, and what it now reaches reaches farther: the
+        # release before judged again only wires whose curves took all they gained, and
+        # shared twolines seed 12's shield stopped where its first round's reach ended).
         todo = {k for k, p in enumerate(new) if len(p)}
         if not todo:
             break
@@ -1726,11 +1730,6 @@ def _measured_by_evidence(
             )  # fmt: skip
             drawn = np.sort(fit.plane_coords(out[k].points(np.array(out[k].s_range)))[0])
             out[k] = dataclasses.replace(fit, s_range=(float(drawn[0]), float(drawn[1])))
-        # Judged again: every wire that gained (its refitted curve lies closer to the wire
-        # past what it was fitted to before, and what it now reaches reaches farther: the
-        # release before judged again only wires whose curves took all they gained, and
-        # shared twolines seed 12's shield stopped where its first round's reach ended).
-        todo = {k for k, p in enumerate(new) if len(p)}
     return out, verified, decoded
 
 
