@@ -13,8 +13,8 @@ where the wires say so, in three ways:
 - **two pieces meeting**: one conductor's pieces in neighbouring spans, ending on either
   side of a support, whose curves (extended) cross there in a downward bend;
 - **wires ending together** where the images see beyond them: the end of a line (a
-  terminal tower). Wires that end where the images end have left the survey, and no
-  support is made up for them.
+  terminal tower, placed at the pole the images show there if they show one). Wires that
+  end where the images end have left the survey, and no support is made up for them.
 
 Before that, two wires of one line that touch in one vertical plane are put right: two
 wires never cross, so along each stretch between their crossings one of them is not there.
@@ -31,7 +31,8 @@ supports it hangs between: the tips of the insulators, where the curves meet) an
 to the same conductor in the next span (attachments within ``same_conductor_m``).
 
 Everything here works on fitted wires and their points; images are read only to tell two
-wires in one plane apart and to see whether wires go on past where they end.
+wires in one plane apart, to see whether wires go on past where they end, and to find the
+pole a line ends at.
 """
 
 from __future__ import annotations
@@ -691,6 +692,109 @@ def _evidence_stops(
     return stops
 
 
+# Where a line ends at a pole, the wires' line evidence runs on past their attachments along
+# the pole or its arm (the package's `parallel` layout: its end poles placed 0.4-0.6 m out,
+# each view's stop 0.4-0.7 m past the wires' ends). The pole itself is a vertical bar from
+# the ground to the wires, one place in every view that sees it: a place is looked for
+# within POLE_SEARCH_M of where the evidence ends, every POLE_STEP_M along and across the
+# line, and the end moves there when the bar stands out there alone (a lattice tower's
+# members give several bars about as strong, the ground's texture none).
+POLE_SEARCH_M = 1.5
+POLE_STEP_M = 0.1
+POLE_HALF_WIDTH_M = 0.12  # a pole's half-width (poles are 0.2-0.4 m across)
+POLE_FLANK_PX = 2.5  # the grey beside it read this far past its half-width, on both sides
+POLE_READ_M = (1.5, 1.0)  # read from this far above the ground to this far under the wires
+POLE_MIN_PX = 20.0  # a view reads the pole where its image is this long or more
+POLE_VIEWS = (3, 10)  # at least, at most (the longest images)
+POLE_CLEAR_M = 0.5  # the bar's rivals: every place this far from it or farther
+# The bar must stand this many times as high above the places around (their median) as its
+# strongest rival: 10.7-78 at the poles of the package's `parallel` and `branch` layouts,
+# 1.0-1.25 at their towers, where it was chosen; on the shared generator, measured after,
+# 2.7-4.8 at its poles and 1.0-1.9 at its towers (README).
+POLE_MIN_RATIO = 3.0
+
+
+def _pole(
+    views: Sequence,
+    leg: _Leg,
+    u: float,
+    c: float,
+    ground_height: Callable[[F64], F64],
+    top_z: float,
+    greys: dict[Path, np.ndarray],
+) -> float | None:
+    """Where along ``leg``, within POLE_SEARCH_M of (``u``, ``c``), the images show a pole
+    standing from the ground to the wires (``top_z``: their height there), or None.
+
+    In each view whose image of the pole is POLE_MIN_PX long or more (the POLE_VIEWS[1]
+    longest), each place's vertical is read along its image from POLE_READ_M[0] above the
+    ground to POLE_READ_M[1] under ``top_z``: the grey along it less the grey beside it,
+    on each side (a bar, not an edge: the smaller of the two where both have one sign,
+    else none), in robust σ of those differences over the places. The views' median (a
+    view alone reads the pole all along the line through it from its nadir; two views'
+    lines cross only at the pole), of either polarity, must stand POLE_MIN_RATIO times as
+    high above the places' median as the best place POLE_CLEAR_M or more from it."""
+    off = np.arange(-POLE_SEARCH_M, POLE_SEARCH_M + 1e-9, POLE_STEP_M)
+    n = len(off)
+    du, dc = np.meshgrid(off, off, indexing="ij")
+    xy = leg.xy(u, c) + du[..., None] * leg.direction + dc[..., None] * leg.normal
+    lo = float(ground_height(leg.xy(u, c)[None])[0]) + POLE_READ_M[0]
+    hi = top_z - POLE_READ_M[1]
+    if hi - lo < 2.0 * POLE_READ_M[0]:
+        return None
+    hs = np.linspace(lo, hi, 24)
+    plan = np.repeat(xy[:, :, None, :], len(hs), axis=2)
+    pts = np.concatenate([plan, np.broadcast_to(hs, (n, n, len(hs)))[..., None]], axis=-1)
+    pts = pts.reshape(-1, 3)
+    seen = []
+    for v in views:
+        uv, depth, ok = v.project(pts)
+        if not ok.all():
+            continue
+        uv = uv.reshape(n, n, len(hs), 2) - 0.5
+        along = uv[n // 2, n // 2, -1] - uv[n // 2, n // 2, 0]
+        length = float(np.linalg.norm(along))
+        if length >= POLE_MIN_PX:
+            seen.append((length, v, uv, along / length, float(np.median(depth))))
+    seen = sorted(seen, key=lambda t: -t[0])[: POLE_VIEWS[1]]
+    if len(seen) < POLE_VIEWS[0]:
+        return None
+    zs = []
+    for _, v, uv, along, depth in seen:
+        normal = np.array([-along[1], along[0]])
+        half = max(1.0, POLE_HALF_WIDTH_M * float(v.focal_px) / depth)
+        grey = _grey(v, greys)
+        flat = uv.reshape(-1, 2)
+        pad = half + POLE_FLANK_PX + 8.0
+        x0, y0 = np.maximum(np.floor(flat.min(axis=0) - pad), 0).astype(int)
+        x1, y1 = np.ceil(flat.max(axis=0) + pad).astype(int) + 1
+        crop = cv2.GaussianBlur(grey[y0:y1, x0:x1], (0, 0), 0.8)
+
+        def mean_at(o: float, uv: F64 = uv, normal: F64 = normal, crop: np.ndarray = crop,
+                    x0: int = x0, y0: int = y0) -> F64:  # fmt: skip
+            q = (uv + o * normal - [x0, y0]).astype(np.float32).reshape(-1, len(hs), 2)
+            g = cv2.remap(crop, np.ascontiguousarray(q[..., 0]), np.ascontiguousarray(q[..., 1]),
+                          cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT)  # fmt: skip
+            return g.mean(axis=1).reshape(n, n)
+
+        mid = mean_at(0.0)
+        a = mid - mean_at(half + POLE_FLANK_PX)
+        b = mid - mean_at(-(half + POLE_FLANK_PX))
+        ab = np.r_[a.ravel(), b.ravel()]
+        sigma = 1.4826 * float(np.median(np.abs(ab - np.median(ab)))) + 1e-6
+        zs.append(np.where(a * b > 0, np.sign(a) * np.minimum(np.abs(a), np.abs(b)), 0.0) / sigma)
+    middle = np.median(zs, axis=0)
+    for sign in (1.0, -1.0):
+        score = sign * middle
+        k = np.unravel_index(int(np.argmax(score)), score.shape)
+        rivals = np.hypot(du - du[k], dc - dc[k]) >= POLE_CLEAR_M
+        base = float(np.median(score[rivals]))
+        rival = float(score[rivals].max()) - base
+        if rival > 0 and score[k] - base >= POLE_MIN_RATIO * rival:
+            return u + float(du[k])
+    return None
+
+
 # Two wires' image curves at least this far apart (px) are told apart by their ridges (each
 # ridge is read within 1.5 px of its curve, and the grey beside it 2.5-3 px out).
 MIN_APART_PX = 6.0
@@ -959,7 +1063,9 @@ def find_spans(
     found = _clustered(cands, len(axes), options)
     found = _not_run_through(found, work, axes, pts_in_world, options, wires_options)
     # 3. Wires ending together where the images see past them: the line ends there.
-    found += _line_ends(views, work, axes, found, options, crossing_offset, traced_past)
+    found += _line_ends(
+        views, work, axes, found, options, crossing_offset, traced_past, ground_height
+    )
     # 4. Every wire cut at each support of its leg that it runs across.
     _cut_at_supports(work, found, axes, pts_in_world, options, wires_options, max_across)
     # A piece cut off at a support may lie on the next span's wire of the same conductor
@@ -1161,10 +1267,11 @@ def _line_ends(
     options: SpanOptions,
     crossing_offset: float,
     traced_past: float,
+    ground_height: Callable[[F64], F64],
 ) -> list[_Found]:
     """Two or more wires ending together where the images see past them (and do not show
     them going on), away from the corridor's end and from the supports found: the line
-    ends there."""
+    ends there (at the pole the images show there, if they show one: :func:`_pole`)."""
     out, ends_found = work.wires, []
     for li, leg in enumerate(axes):
         idx = work.on_leg(li)
@@ -1248,6 +1355,20 @@ def _line_ends(
                     u_at = float(np.quantile(at_u, far_q))
                 else:
                     u_at = float(np.median(ends[g, side]))
+                # The wires' height at their ends here: the top of the pole's read.
+                top = max(
+                    float(out[idx[i]].points(np.array([out[idx[i]].s_range[at_end[i]]]))[0, 2])
+                    for i in g
+                )
+                pole = _pole(views, leg, u_at, c_mid, ground_height, top, greys)
+                if pole is not None:
+                    logger.info(
+                        "spans: the line ends at a pole the images show %.2f m from where "
+                        "its wires' evidence ends (%.1f along it)",
+                        abs(pole - u_at),
+                        u_at,
+                    )
+                    u_at = pole
                 ends_found.append((li, u_at, "wires ending", {out[idx[i]].wire_id for i in g}))
     return ends_found
 

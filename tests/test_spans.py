@@ -581,9 +581,10 @@ def test_a_support_s_top_is_read_from_its_wires_as_they_are_drawn_at_the_end():
     assert stale[0].top_z == 44.8  # the caller's supports are not changed
 
 
-def _drawn_views(tmp_path, truth: list[np.ndarray], places, rng) -> list:
+def _drawn_views(tmp_path, truth: list[np.ndarray], places, rng, poles=()) -> list:
     """Nadir views 50 m up at ``places`` (x, y), 90° across (a pixel is 8 cm at 25 m), of
-    noisy grey ground with the ``truth`` curves (dense 3D points) drawn a pixel wide."""
+    noisy grey ground with the ``truth`` curves (dense 3D points) drawn a pixel wide, and
+    ``poles`` (foot, top, width) drawn as bars of their width."""
     import cv2
     import pycolmap
 
@@ -604,6 +605,12 @@ def _drawn_views(tmp_path, truth: list[np.ndarray], places, rng) -> list:
             q = np.round((uv[ok] + 0.5) * 4 - 0.5).astype(np.int32)
             if len(q) > 1:
                 cv2.polylines(line, [q], False, 1.0, thickness=4)
+        for foot, top, width in poles:
+            uv, depth, _ = im.project(np.array([foot, top], float))
+            t = (uv[1] - uv[0]) / np.linalg.norm(uv[1] - uv[0])
+            half = 0.5 * width * f / depth[:, None] * np.array([-t[1], t[0]])
+            quad = np.array([uv[0] - half[0], uv[0] + half[0], uv[1] + half[1], uv[1] - half[1]])
+            cv2.fillConvexPoly(line, np.round((quad + 0.5) * 4 - 0.5).astype(np.int32), 0.5)
         grey = 128.0 + 60.0 * cv2.resize(line, (size, size), interpolation=cv2.INTER_AREA)
         grey += rng.normal(0.0, 6.0, grey.shape)
         cv2.imwrite(str(path), np.clip(grey, 0, 255).astype(np.uint8))
@@ -776,6 +783,28 @@ def test_a_line_s_end_is_placed_where_its_wires_line_evidence_stops(tmp_path, sh
     sp = _terminal_spans(views, rng, short_m)
     assert [s.kind for s in sp.supports] == ["end"]
     assert abs(sp.supports[0].position[0] - 60.0) < 0.5
+
+
+_POLE = ((60.0, 0.0, 0.0), (60.0, 0.0, 30.0), 0.3)
+_MEMBER = ((58.5, -1.5, 0.0), (60.5, 0.0, 30.0), 0.3)
+
+
+@pytest.mark.parametrize(("poles", "at"), [([], 60.7), ([_POLE], 60.0), ([_MEMBER], 60.7)])
+def test_a_line_s_end_is_placed_at_the_pole_the_images_show(tmp_path, poles, at):
+    # The images show the wires running 0.7 m past the terminal pole at x = 60 (along its
+    # arm: the package's parallel layout, its end poles placed 0.4-0.6 m out). Where they
+    # also show the pole (a 0.3 m bar from the ground to the wires), the end is placed at
+    # it; where they show none, or a slanting bar (a lattice tower's member), where the
+    # wires' evidence ends. Three views read the pole (the fourth, 2 m from it, sees it
+    # end-on), from three directions (two views on one line through the pole read it
+    # along that line both).
+    rng = np.random.default_rng(11)
+    places = [(56.0, -8.0), (56.0, 8.0), (62.0, 0.0), (67.0, -3.0)]
+    views = _drawn_views(tmp_path, _terminal_curves(dict.fromkeys(_TERMINAL_YS, 60.7)), places,
+                         rng, poles)  # fmt: skip
+    sp = _terminal_spans(views, rng, -0.7)
+    assert [s.kind for s in sp.supports] == ["end"]
+    assert abs(sp.supports[0].position[0] - at) < 0.2
 
 
 def test_a_line_ends_where_the_views_of_all_its_wires_together_say_so(tmp_path):
