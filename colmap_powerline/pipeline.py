@@ -788,7 +788,7 @@ def reconstruct(
         parts = _reconstruct_corridors(scene, corridors, options, timings, tasks, store)
         part = _lines_apart(_merged(parts, options.wires.inlier_distance, options.wires.max_gap))
         t0 = time.perf_counter()
-        spans = _spans_of(scene, part, options)
+        part, spans = _spans_apart(scene, part, options)
         timings["spans"] = time.perf_counter() - t0
         # Lines that leave a support of those found (a branch line from a junction pole).
         t0 = time.perf_counter()
@@ -806,7 +806,7 @@ def reconstruct(
                 _merged(parts, options.wires.inlier_distance, options.wires.max_gap)
             )
             t0 = time.perf_counter()
-            spans = _spans_of(scene, part, options)
+            part, spans = _spans_apart(scene, part, options)
             timings["spans"] += time.perf_counter() - t0
     corridor, pairs, primitives, verified = (
         part.corridor,
@@ -1155,6 +1155,54 @@ def _support_members_of(
             if k >= n:
                 out.setdefault(k - n, line)
     return out
+
+
+def _spans_apart(
+    scene: Scene, part: CorridorResult, options: ReconstructionOptions
+) -> tuple[CorridorResult, Spans]:
+    """The supports and spans of the corridors' wires (:func:`_spans_of`), each line beside
+    another's that the spans stage tells apart (its wires pass a support of the other's
+    without a bend, across beyond the wires hanging from it) given a corridor of its own
+    first (:func:`_beside_apart`): a pole line 12 m beside a tower line is within
+    LINE_LINK_M of it, and the tower line's conductors, cut at the poles, were dropped as
+    false pairings (the package's `parallel` layout with the lines 12 m apart)."""
+    spans = _spans_of(scene, part, options)
+    for _ in range(2):
+        if not spans.beside:
+            break
+        part = _beside_apart(part, spans.beside)
+        spans = _spans_of(scene, part, options)
+    return part, spans
+
+
+def _beside_apart(part: CorridorResult, beside: Sequence[tuple[int, float, int]]) -> CorridorResult:
+    """``part`` with each leg's wires across beyond ``beside``'s (leg, across, side) as a
+    line of their own: a copy of the leg's corridor centred on them (as
+    :func:`_lines_apart`)."""
+    legs, corridors = list(part.legs), list(part.corridors)
+    for li, cut, side in beside:
+        c = part.corridors[li]
+        idx = [k for k, leg in enumerate(part.legs) if leg == li]
+        mids = np.array(
+            [part.wires[k].points(np.array([np.mean(part.wires[k].s_range)]))[0] for k in idx]
+        )
+        across = (mids[:, :2] - c.centre_xy) @ c.normal_xy
+        mine = side * (across - cut) > 0
+        if not mine.any() or mine.all():
+            continue
+        shift = float(np.mean(across[mine]))
+        corridors.append(dataclasses.replace(c, centre_xy=c.centre_xy + shift * c.normal_xy))
+        for k in np.asarray(idx)[mine]:
+            legs[k] = len(corridors) - 1
+        logger.info(
+            "lines: %d wires %.1f across the line at %.1f° pass its supports by: a line beside it",
+            int(mine.sum()),
+            shift,
+            c.azimuth_deg,
+        )
+    if len(corridors) == len(part.corridors):
+        return part
+    return dataclasses.replace(part, legs=legs, corridors=corridors)
 
 
 def _spans_of(scene: Scene, part: CorridorResult, options: ReconstructionOptions) -> Spans:

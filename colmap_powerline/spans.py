@@ -195,6 +195,10 @@ class Spans:
     supports: list[LineSupport]
     source: list[int]
     legs: list[int] = field(default_factory=list)
+    # Lines beside a leg's: (leg, across, side) — the leg's wires across from its axis
+    # beyond ``across`` on ``side`` (+1: more, -1: less) are a line of their own
+    # (:func:`_cut_at_supports`); none where every leg holds one line.
+    beside: list[tuple[int, float, int]] = field(default_factory=list)
 
 
 @dataclass
@@ -1017,6 +1021,7 @@ class _Work:
     cut_ids: set[int]
     next_id: int
     let_go: dict[int, I64] = field(default_factory=dict)
+    beside: list[tuple[int, float, int]] = field(default_factory=list)
 
     def on_leg(self, li: int) -> list[int]:
         return [k for k in range(len(self.wires)) if self.legs[k] == li]
@@ -1387,6 +1392,7 @@ def _cut_at_supports(
     through it, the wire is no conductor of this line (a false pairing: dropped); a piece
     that does not meet the other there is a tail the curve took past the support."""
     out = work.wires
+    passed: set[tuple[int, float]] = set()  # (wire, support) a line beside passes by
     changed = True
     while changed:
         changed = False
@@ -1394,9 +1400,9 @@ def _cut_at_supports(
             li = work.legs[k]
             leg = axes[li]
             lo, hi = leg.ends_u(out[k])
-            for s_li, u, _, _ in found:
+            for s_li, u, _, ids in found:
                 r = options.support_radius
-                if s_li != li or not (lo + r < u < hi - r):
+                if s_li != li or not (lo + r < u < hi - r) or (out[k].wire_id, u) in passed:
                     continue
                 # A wire whose curve let go of the points by a support: its pieces fitted
                 # to those points too.
@@ -1434,6 +1440,21 @@ def _cut_at_supports(
                     keep = [max(cut, key=lambda w: np.ptp(leg.ends_u(w)))]
                 elif meet < options.min_kink_deg:
                     keep = []
+                    # Across beyond the wires that hang from the support: a line beside
+                    # this one, which passes the support by (not a false pairing).
+                    side = _beside(work, leg, u, ids, out[k], options)
+                    if side is not None:
+                        logger.info(
+                            "spans: wire %d runs straight through the support at %.1f along "
+                            "its line, %.1f across beyond the wires that hang from it: a "
+                            "line beside",
+                            out[k].wire_id,
+                            u,
+                            side[1],
+                        )
+                        work.beside.append((li, side[0], side[2]))
+                        passed.add((out[k].wire_id, u))
+                        continue
                 if len(keep) < 2:
                     logger.info(
                         "spans: wire %d %s the support at %.1f along its line: %s",
@@ -1450,6 +1471,47 @@ def _cut_at_supports(
                 break
             if changed:
                 break
+
+
+# A wire running smoothly through a support, this far across beyond every wire that hangs
+# from it, is of a line beside (a cross-arm holds its conductors within a few metres of
+# the outermost: the package's `parallel` layout 12 m apart, the pole line's outer
+# conductor 5.3 m from the tower line's).
+LINE_BESIDE_M = 3.0
+
+
+def _beside(
+    work: _Work, leg: _Leg, u: float, ids: set[int], wire: FittedWire, options: SpanOptions
+) -> tuple[float, float, int] | None:
+    """Where ``wire``, which runs through the support at ``u`` along ``leg`` without a bend,
+    lies across beyond every other wire of ``ids`` (those that found the support) by
+    LINE_BESIDE_M or more: (the across halfway between it and the nearest of them, how far
+    beyond it lies, the side: +1 more across, -1 less), else None."""
+    c = float(leg.curve(wire, np.array([u]))[0][0])
+    hung = [
+        float(leg.curve(w, np.array([u]))[0][0])
+        for w in work.wires
+        if w.wire_id in ids and w.wire_id != wire.wire_id
+    ]
+    hung = [x for x in hung if np.isfinite(x)]
+    if not hung or not np.isfinite(c):
+        return None
+    lo, hi = min(hung), max(hung)
+    if c > hi + LINE_BESIDE_M:
+        return 0.5 * (c + hi), c - hi, 1
+    if c < lo - LINE_BESIDE_M:
+        return 0.5 * (c + lo), lo - c, -1
+    return None
+
+
+def _one_each(beside: list[tuple[int, float, int]]) -> list[tuple[int, float, int]]:
+    """One line beside per leg and side: the across nearest the leg's own wires (the
+    smallest on the side of more across, the largest on the other)."""
+    out: dict[tuple[int, int], float] = {}
+    for li, c, side in beside:
+        key = (li, side)
+        out[key] = c if key not in out else (min(out[key], c) if side > 0 else max(out[key], c))
+    return [(li, c, side) for (li, side), c in sorted(out.items())]
 
 
 def _located(
@@ -1719,7 +1781,7 @@ def _placed(
             len(out),
             len(numbers),
         )
-    return Spans(out, placement, supports_out, work.source, out_legs)
+    return Spans(out, placement, supports_out, work.source, out_legs, _one_each(work.beside))
 
 
 def attached_again(

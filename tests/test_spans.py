@@ -944,3 +944,49 @@ def test_wires_hanging_in_groups_apart_are_lines_of_their_own():
     assert out.corridors[1].azimuth_deg == corridor.azimuth_deg
     alone = part(wires[:6])
     assert _lines_apart(alone) is alone
+
+
+def test_a_line_beside_another_passes_its_support_by_and_is_told_apart():
+    # A pole line's three conductors (1 m apart, 10 m up) over two 45 m spans kinked at a
+    # pole at the origin, each measured across it as one wire; 8 m beside it (within
+    # LINE_LINK_M, so one corridor) a tower line's two conductors, 17 and 21 m up, run
+    # straight past the pole on a 160 m span. The pole is found where the pole line's
+    # wires bend; the tower line's wires pass it without a bend, across beyond them: a line
+    # beside (the package's `parallel` layout 12 m apart: dropped as false pairings before,
+    # the tower line's conductors 0-50 % complete).
+    rng = np.random.default_rng(3)
+    parts = []
+    for y in (-1.0, 0.0, 1.0):
+        a = _span_points([-45, y, 10.0], [0, y, 10.0], 420.0, rng, keep=(2.0, 0.0))
+        b = _span_points([0, y, 10.0], [45, y, 10.0], 420.0, rng, keep=(0.0, 2.0))
+        parts.append(np.r_[a, b])
+    for y, z in ((-9.0, 17.0), (-11.0, 21.0)):
+        parts.append(_span_points([-80, y, z], [80, y, z], 900.0, rng, keep=(20.0, 20.0)))
+    n = np.cumsum([0] + [len(p) for p in parts])
+    pts = np.concatenate(parts)
+    wires = [_wire(pts, np.arange(n[k], n[k + 1]), np.array([1.0, 0.0]), k) for k in range(5)]
+    sp = find_spans([], _flat, wires, [0] * 5, [_corridor(90.0)], pts)
+    # Across is -y along +x: the tower line lies on the side of more across, beyond 1 m.
+    assert len(sp.beside) == 1
+    leg, across, side = sp.beside[0]
+    assert leg == 0 and side == 1 and 1.0 < across < 9.0
+    # Its wires are not dropped; given a corridor of their own (as the pipeline gives them,
+    # `_beside_apart`), they are a line of their own, whole, and the pole line's wires
+    # hang in two spans from the pole.
+    assert sum(src >= 3 for src in sp.source) == 2
+    beside = dataclasses.replace(_corridor(90.0), centre_xy=np.array([0.0, -10.0]))
+    sp = find_spans([], _flat, wires, [0, 0, 0, 1, 1], [_corridor(90.0), beside], pts)
+    assert sp.beside == []
+    tower = [w for w, src in zip(sp.wires, sp.source, strict=True) if src >= 3]
+    assert len(tower) == 2 and all(np.ptp(w.s_range) > 100.0 for w in tower)
+    lines = {p.line for p, src in zip(sp.placement, sp.source, strict=True) if src >= 3}
+    poles = {p.line for p, src in zip(sp.placement, sp.source, strict=True) if src < 3}
+    assert len(lines) == 1 and len(poles) == 1 and lines != poles
+    assert sorted(p.span for p, src in zip(sp.placement, sp.source, strict=True) if src < 3) == [
+        1,
+        1,
+        1,
+        2,
+        2,
+        2,
+    ]
