@@ -712,9 +712,10 @@ POLE_MIN_PX = 20.0  # a view reads the pole where its image is this long or more
 POLE_VIEWS = (3, 10)  # at least, at most (the longest images)
 POLE_CLEAR_M = 0.5  # the bar's rivals: every place this far from it or farther
 # The bar must stand this many times as high above the places around (their median) as its
-# strongest rival: 10.7-78 at the poles of the package's `parallel` and `branch` layouts,
-# 1.0-1.25 at their towers, where it was chosen; on the shared generator, measured after,
-# 2.7-4.8 at its poles and 1.0-1.9 at its towers (README).
+# strongest rival: 19-85 at the poles of the package's `parallel` and `branch` layouts,
+# 1.1-1.3 at their towers, where it was chosen; measured after, on the shared generator,
+# 3.8-4.4 at three of its four poles and 1.0-1.75 at its towers, on the road flight 33 at
+# its end pole (README).
 POLE_MIN_RATIO = 3.0
 
 
