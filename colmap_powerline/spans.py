@@ -1390,8 +1390,10 @@ def _cut_at_supports(
 ) -> None:
     """Cut every wire of ``work`` at each support of its leg that it runs across. A
     conductor hangs from the support: its two pieces meet there in a bend. Running smoothly
-    through it, the wire is no conductor of this line (a false pairing: dropped); a piece
-    that does not meet the other there is a tail the curve took past the support."""
+    through it, the wire is no conductor of this line: of a line beside, where it lies
+    across beyond the wires hanging from the support (:func:`_beside`: left whole, and the
+    line noted in ``work.beside``), else a false pairing (dropped). A piece that does not
+    meet the other there is a tail the curve took past the support."""
     out = work.wires
     passed: set[tuple[int, float]] = set()  # (wire, support) a line beside passes by
     changed = True
@@ -1443,7 +1445,7 @@ def _cut_at_supports(
                     keep = []
                     # Across beyond the wires that hang from the support: a line beside
                     # this one, which passes the support by (not a false pairing).
-                    side = _beside(work, leg, u, ids, out[k], options)
+                    side = _beside(work, leg, u, ids, out[k])
                     if side is not None:
                         logger.info(
                             "spans: wire %d runs straight through the support at %.1f along "
@@ -1482,7 +1484,7 @@ LINE_BESIDE_M = 3.0
 
 
 def _beside(
-    work: _Work, leg: _Leg, u: float, ids: set[int], wire: FittedWire, options: SpanOptions
+    work: _Work, leg: _Leg, u: float, ids: set[int], wire: FittedWire
 ) -> tuple[float, float, int] | None:
     """Where ``wire``, which runs through the support at ``u`` along ``leg`` without a bend,
     lies across beyond every other wire of ``ids`` (those that found the support) by
