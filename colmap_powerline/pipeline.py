@@ -193,6 +193,26 @@ def _merged(
 LINE_LINK_M = 15.0
 
 
+def _middles(part: CorridorResult, idx: Sequence[int]) -> F64:
+    """(len(idx), 3) the middle of each of ``part``'s wires ``idx``."""
+    return np.array(
+        [part.wires[k].points(np.array([np.mean(part.wires[k].s_range)]))[0] for k in idx]
+    )
+
+
+def _own_corridor(
+    legs: list[int], corridors: list[WireCorridor], c: WireCorridor, wires: Sequence[int],
+    across: F64,
+) -> float:  # fmt: skip
+    """Give ``wires`` (their ``across`` ``c`` at their middles) a copy of corridor ``c`` (its
+    direction and extent) centred on them, in ``legs`` and ``corridors``; how far across."""
+    shift = float(np.mean(across))
+    corridors.append(dataclasses.replace(c, centre_xy=c.centre_xy + shift * c.normal_xy))
+    for k in wires:
+        legs[k] = len(corridors) - 1
+    return shift
+
+
 def _lines_apart(part: CorridorResult) -> CorridorResult:
     """``part`` with the wires of each corridor that hang in groups apart (no wire of a group
     within ``LINE_LINK_M`` of one of another, across the line and in height) as lines of their
@@ -203,12 +223,10 @@ def _lines_apart(part: CorridorResult) -> CorridorResult:
     layout: 11.9 m off), and the pole line has no support of its own."""
     legs, corridors = list(part.legs), list(part.corridors)
     for li, c in enumerate(part.corridors):
-        idx = [k for k, leg in enumerate(part.legs) if leg == li]
+        idx = np.array([k for k, leg in enumerate(part.legs) if leg == li])
         if len(idx) < 2:
             continue
-        mids = np.array(
-            [part.wires[k].points(np.array([np.mean(part.wires[k].s_range)]))[0] for k in idx]
-        )
+        mids = _middles(part, idx)
         across = (mids[:, :2] - c.centre_xy) @ c.normal_xy
         groups = fcluster(linkage(np.c_[across, mids[:, 2]], "single"), LINE_LINK_M, "distance")
         if groups.max() == 1:
@@ -216,10 +234,7 @@ def _lines_apart(part: CorridorResult) -> CorridorResult:
         by_size = sorted(set(groups.tolist()), key=lambda g: (-int((groups == g).sum()), g))
         for g in by_size[1:]:
             mine = groups == g
-            shift = float(np.mean(across[mine]))
-            corridors.append(dataclasses.replace(c, centre_xy=c.centre_xy + shift * c.normal_xy))
-            for k in np.asarray(idx)[mine]:
-                legs[k] = len(corridors) - 1
+            shift = _own_corridor(legs, corridors, c, idx[mine], across[mine])
             logger.info(
                 "lines: %d wires %.1f across the line at %.1f° from its other %d, in a group of "
                 "their own: a line beside it",
@@ -1182,18 +1197,12 @@ def _beside_apart(part: CorridorResult, beside: Sequence[tuple[int, float, int]]
     legs, corridors = list(part.legs), list(part.corridors)
     for li, cut, side in beside:
         c = part.corridors[li]
-        idx = [k for k, leg in enumerate(part.legs) if leg == li]
-        mids = np.array(
-            [part.wires[k].points(np.array([np.mean(part.wires[k].s_range)]))[0] for k in idx]
-        )
-        across = (mids[:, :2] - c.centre_xy) @ c.normal_xy
+        idx = np.array([k for k, leg in enumerate(part.legs) if leg == li])
+        across = (_middles(part, idx)[:, :2] - c.centre_xy) @ c.normal_xy
         mine = side * (across - cut) > 0
         if not mine.any() or mine.all():
             continue
-        shift = float(np.mean(across[mine]))
-        corridors.append(dataclasses.replace(c, centre_xy=c.centre_xy + shift * c.normal_xy))
-        for k in np.asarray(idx)[mine]:
-            legs[k] = len(corridors) - 1
+        shift = _own_corridor(legs, corridors, c, idx[mine], across[mine])
         logger.info(
             "lines: %d wires %.1f across the line at %.1f° pass its supports by: a line beside it",
             int(mine.sum()),

@@ -719,6 +719,14 @@ POLE_CLEAR_M = 0.5  # the bar's rivals: every place this far from it or farther
 POLE_MIN_RATIO = 3.0
 
 
+def _grey_along(grey: np.ndarray, lines: F64) -> F64:
+    """(..., ) the mean grey along each image line of ``lines`` (..., M, 2) points."""
+    q = lines.astype(np.float32).reshape(-1, lines.shape[-2], 2)
+    g = cv2.remap(grey, np.ascontiguousarray(q[..., 0]), np.ascontiguousarray(q[..., 1]),
+                  cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT)  # fmt: skip
+    return g.mean(axis=1).reshape(lines.shape[:-2])
+
+
 def _pole(
     views: Sequence,
     leg: _Leg,
@@ -774,17 +782,10 @@ def _pole(
         x0, y0 = np.maximum(np.floor(flat.min(axis=0) - pad), 0).astype(int)
         x1, y1 = np.ceil(flat.max(axis=0) + pad).astype(int) + 1
         crop = cv2.GaussianBlur(grey[y0:y1, x0:x1], (0, 0), 0.8)
-
-        def mean_at(o: float, uv: F64 = uv, normal: F64 = normal, crop: np.ndarray = crop,
-                    x0: int = x0, y0: int = y0) -> F64:  # fmt: skip
-            q = (uv + o * normal - [x0, y0]).astype(np.float32).reshape(-1, len(hs), 2)
-            g = cv2.remap(crop, np.ascontiguousarray(q[..., 0]), np.ascontiguousarray(q[..., 1]),
-                          cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT)  # fmt: skip
-            return g.mean(axis=1).reshape(n, n)
-
-        mid = mean_at(0.0)
-        a = mid - mean_at(half + POLE_FLANK_PX)
-        b = mid - mean_at(-(half + POLE_FLANK_PX))
+        lines = uv - [x0, y0]  # each place's vertical in the crop's pixels
+        mid = _grey_along(crop, lines)
+        a = mid - _grey_along(crop, lines + (half + POLE_FLANK_PX) * normal)
+        b = mid - _grey_along(crop, lines - (half + POLE_FLANK_PX) * normal)
         ab = np.r_[a.ravel(), b.ravel()]
         sigma = 1.4826 * float(np.median(np.abs(ab - np.median(ab)))) + 1e-6
         zs.append(np.where(a * b > 0, np.sign(a) * np.minimum(np.abs(a), np.abs(b)), 0.0) / sigma)
