@@ -775,7 +775,7 @@ def _pole(
     zs = []
     for _, v, uv, along, depth in seen:
         normal = np.array([-along[1], along[0]])
-        half = max(1.0, POLE_HALF_WIDTH_M * float(v.focal_px) / depth)
+        half = max(1.0, POLE_HALF_WIDTH_M / float(v.gsd_at_depth(depth)))
         grey = _grey(v, greys)
         flat = uv.reshape(-1, 2)
         pad = half + POLE_FLANK_PX + 8.0
