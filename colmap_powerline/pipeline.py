@@ -395,6 +395,19 @@ def _probe(
     return _Probe(length, len(wires), prov, verified.pts_in_world[idx], measured), decoded
 
 
+def _same_band(a: WireCorridor, b: WireCorridor, tolerance_deg: float) -> bool:
+    """Whether two provisional bands are one: directions within ``tolerance_deg``, each
+    band's middle within the other, and neither more than twice as wide as the other (a
+    band across the whole survey probed with a few pairs has not probed a narrow one in
+    it)."""
+    if axial_diff_deg(a.azimuth_deg, b.azimuth_deg) >= tolerance_deg:
+        return False
+    normal = plan_axes(a.azimuth_deg)[1]
+    apart = abs(float((a.centre_xy - b.centre_xy) @ normal))
+    wa, wb = a.wires_half_width, b.wires_half_width
+    return apart <= min(wa, wb) and max(wa, wb) <= 2.0 * min(wa, wb)
+
+
 def _has_line(probe: _Probe | None) -> bool:
     """Did a probe measure a line's wires (a line carries at least ``MIN_LINE_WIRES``)?"""
     return probe is not None and probe.num_wires >= MIN_LINE_WIRES
@@ -439,20 +452,25 @@ def probe_corridors(
     def best() -> _Probe | None:
         return max(probes, key=lambda p: p.length) if probes else None
 
+    tried: list[WireCorridor] = []
+
     def probe_all(found: DirectionCandidates, ks: Sequence[int], bands: int = 2) -> None:
-        # Each probe is a task of its own (its pairs run one after the other in it).
-        provs = [
-            prov
-            for k in ks
+        # Each probe is a task of its own (its pairs run one after the other in it). A band
+        # probed already (in about the same direction, place and width) is not probed again.
+        provs = []
+        for k in ks:
             for prov in provisional_corridors(
                 scene, found, found.azimuths_deg[k], options.pairs, heights
-            )[:bands]
-        ]
+            )[:bands]:
+                if not any(_same_band(prov, t, tol) for t in tried):
+                    provs.append(prov)
+                    tried.append(prov)
         for probe, n in (tasks or Tasks()).map(_probe, provs, scene, options):
             decoded.extend(n)
             if probe is not None:
                 probes.append(probe)
 
+    tol = options.pairs.candidate_tolerance_deg
     order = list(np.argsort(cands.weights)[::-1][: options.pairs.probe_candidates])
     probe_all(cands, order)
     first = best()
@@ -467,18 +485,25 @@ def probe_corridors(
         lost = not _has_line(first)
         wide = direction_candidates(scene, options.pairs, wide=True, read=cands.analysed)
         decoded += list(wide.decoded)  # at full resolution: the first look's images again
-        tol = options.pairs.candidate_tolerance_deg
-        probed = [cands.azimuths_deg[k] for k in order]
-        if not lost and first is not None:
+        if lost or first is None:
+            # Still looking for the line: every direction again, with the bands the wider
+            # look's images give it. The first look's few images may all miss the line in a
+            # large survey: its bands of a direction are where those images lie (on the
+            # full road flight, 162 images over 400 m, none of its six sees the road line,
+            # and its direction was probed far from it and over the whole survey at once;
+            # the wider look's densest band of that direction holds the line). A band
+            # probed already is not probed again (``tried``).
+            ranked = [int(k) for k in np.argsort(wide.weights)[::-1]]
+        else:
             # Another line runs in a direction of its own: one near the found line's can
             # only measure that line again.
-            tol = max(tol, options.pairs.line_tolerance_deg)
-            probed.append(first.azimuth_deg)
-        ranked = [
-            int(k)
-            for k in np.argsort(wide.weights)[::-1]
-            if all(axial_diff_deg(wide.azimuths_deg[k], a) >= tol for a in probed)
-        ]
+            wide_tol = max(tol, options.pairs.line_tolerance_deg)
+            probed = [cands.azimuths_deg[k] for k in order] + [first.azimuth_deg]
+            ranked = [
+                int(k)
+                for k in np.argsort(wide.weights)[::-1]
+                if all(axial_diff_deg(wide.azimuths_deg[k], a) >= wide_tol for a in probed)
+            ]
         fresh = ranked[: (WIDE_CANDIDATES if lost else 1) * options.pairs.probe_candidates]
         logger.info(
             "probe: %s; %d more from %d images ranked alike at every angle: %s",

@@ -12,6 +12,7 @@ from scipy.spatial import cKDTree
 from colmap_powerline import InputError
 from colmap_powerline import pairs as pairs_module
 from colmap_powerline.detect import WireMask
+from colmap_powerline.geometry import plan_axes
 from colmap_powerline.pairs import PairsOptions, select_pairs
 from colmap_powerline.pipeline import ReconstructionOptions, probe_corridor
 from colmap_powerline.rectify import rectify_pair
@@ -152,6 +153,43 @@ def test_the_probes_go_on_down_the_wider_look_until_a_line_is_found(
     with caplog.at_level("INFO", logger="colmap_powerline.pipeline"):
         corridor = probe_corridor(small_scene, ReconstructionOptions(show_progress=False))
     assert any("still no line" in r.getMessage() for r in caplog.records)
+    err = abs((corridor.azimuth_deg - AZIMUTH + 90) % 180 - 90)
+    assert err < 2.0 and corridor.measured, corridor.azimuth_deg
+
+
+def test_the_wider_look_probes_the_first_looks_directions_again_in_its_own_bands(
+    small_scene, monkeypatch, caplog
+):
+    """In a large survey the first look's few images may all miss the line: the bands it
+    gives the line's direction lie where those images are (the full road flight, 162 images
+    over 400 m: none of its six saw the road line). The wider look's images give that
+    direction other bands, and those are probed, though the direction was probed before."""
+    import colmap_powerline.pipeline as pipeline
+
+    real_dirs, real_bands = pipeline.direction_candidates, pipeline.provisional_corridors
+    first: list = []
+
+    def directions(scene, options, wide=False, read=()):
+        found = real_dirs(
+            scene, dataclasses.replace(options, wire_azimuth_deg=AZIMUTH), wide=wide, read=read
+        )
+        if not wide:
+            first.append(found)
+        return found
+
+    def bands(scene, candidates, azimuth, options, heights):
+        out = real_bands(scene, candidates, azimuth, options, heights)
+        if first and candidates is first[0]:
+            # The first look's images lie 300 m across the line: so do its bands.
+            shift = 300.0 * plan_axes(azimuth)[1]
+            out = [dataclasses.replace(c, centre_xy=c.centre_xy + shift) for c in out]
+        return out
+
+    monkeypatch.setattr(pipeline, "direction_candidates", directions)
+    monkeypatch.setattr(pipeline, "provisional_corridors", bands)
+    with caplog.at_level("INFO", logger="colmap_powerline.pipeline"):
+        corridor = probe_corridor(small_scene, ReconstructionOptions(show_progress=False))
+    assert any("no direction gave wires" in r.getMessage() for r in caplog.records)
     err = abs((corridor.azimuth_deg - AZIMUTH + 90) % 180 - 90)
     assert err < 2.0 and corridor.measured, corridor.azimuth_deg
 
