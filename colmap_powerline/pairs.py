@@ -593,6 +593,7 @@ def provisional_corridors(
     azimuth: float,
     options: PairsOptions,
     wire_heights: tuple[float, float],
+    slices: bool = False,
 ) -> list[WireCorridor]:
     """The bands where the lines of one direction run, before anything is measured in 3D.
 
@@ -600,7 +601,8 @@ def provisional_corridors(
     heights. Across the direction they pile up in bands: the wires' band, but a road or a
     field edge may pile up more. The densest band and the whole band they fill are returned
     (``options.probe_bands`` of them), at the usual wire heights (each only has to find a
-    few pairs that see the wires).
+    few pairs that see the wires); with ``slices``, then the whole band in footprint-wide
+    slices, those holding the most line pixels first.
 
     Args:
         wire_heights: the lowest and highest a wire may hang above the ground.
@@ -610,12 +612,11 @@ def provisional_corridors(
     z = candidates.ground_z + 0.5 * (lo_h + hi_h)
     # The pairs only have to see the wires' usual heights, not the extremes.
     band = (lo_h + 0.25 * (hi_h - lo_h), lo_h + 0.6 * (hi_h - lo_h))
-    xy = np.concatenate(
-        [
-            _to_plane(v, _line_pixels(v, g, f, _image_angle(v, azimuth, z), options), z)
-            for v, g, f in candidates.analysed
-        ]
-    )
+    per_image = [
+        _to_plane(v, _line_pixels(v, g, f, _image_angle(v, azimuth, z), options), z)
+        for v, g, f in candidates.analysed
+    ]
+    xy = np.concatenate(per_image)
     direction, normal = plan_axes(azimuth)
     c, s = xy @ normal, xy @ direction
     bins = np.arange(c.min() - 1, c.max() + 2, 1.0)
@@ -630,12 +631,30 @@ def provisional_corridors(
     # The densest band, then the whole band the lines fill (the wires' own when a road or a
     # field edge piles up more line pixels than they do).
     bands = [(bins[lo], bins[hi + 1]), tuple(np.quantile(c, [0.05, 0.95]))]
+    if slices:
+        # The whole band in slices as wide as an image's lines spread across it (a
+        # footprint), those holding the most line pixels first: a few pairs over the whole
+        # band of a large survey see a few places of it, and a line crossing the survey
+        # lies in one slice (on the full road flight, 162 images over 400 m: the road
+        # line's direction probed densest band and whole band, no wires; in its slice, the
+        # line).
+        width = float(
+            np.median([np.ptp(np.quantile(p @ normal, [0.05, 0.95])) for p in per_image if len(p)])
+        )
+        w_lo, w_hi = bands[1]
+        n = max(int(np.ceil((w_hi - w_lo) / max(width, 1.0))), 1)
+        if n > 1:
+            edges = np.linspace(w_lo, w_hi, n + 1)
+            counts = np.histogram(c, edges)[0]
+            for k in np.argsort(counts)[::-1]:
+                if counts[k] > 0:
+                    bands.append((float(edges[k]), float(edges[k + 1])))
     heights = (candidates.ground_z + band[0], candidates.ground_z + band[1])
     out = [
         _band_corridor(
             scene, azimuth, b, s, z, heights, options, measured=False, decoded=candidates.decoded
         )
-        for b in bands[: options.probe_bands]
+        for b in (bands if slices else bands[: options.probe_bands])
     ]
     return out
 

@@ -454,14 +454,16 @@ def probe_corridors(
 
     tried: list[WireCorridor] = []
 
-    def probe_all(found: DirectionCandidates, ks: Sequence[int], bands: int = 2) -> None:
+    def probe_all(
+        found: DirectionCandidates, ks: Sequence[int], bands: int = 2, slices: bool = False
+    ) -> None:
         # Each probe is a task of its own (its pairs run one after the other in it). A band
         # probed already (in about the same direction, place and width) is not probed again.
         provs = []
         for k in ks:
             for prov in provisional_corridors(
-                scene, found, found.azimuths_deg[k], options.pairs, heights
-            )[:bands]:
+                scene, found, found.azimuths_deg[k], options.pairs, heights, slices=slices
+            )[: None if slices else bands]:
                 if not any(_same_band(prov, t, tol) for t in tried):
                     provs.append(prov)
                     tried.append(prov)
@@ -515,8 +517,19 @@ def probe_corridors(
             [round(wide.azimuths_deg[k], 1) for k in fresh],
         )
         # Looking for more lines, the densest band of each direction is enough: a line's
-        # wires pile up there (the wider band is for a main line a road outdoes).
-        probe_all(wide, fresh, options.pairs.probe_bands if lost else 1)
+        # wires pile up there (the wider band is for a main line a road outdoes). Still
+        # looking for the line, the strongest directions are probed across the whole survey,
+        # slice by slice (a few pairs over it all see a few places of it).
+        if lost:
+            top = fresh[: options.pairs.probe_candidates]
+            for k in top:  # one direction at a time: the first with a line ends it
+                probe_all(wide, [k], slices=True)
+                if _has_line(best()):
+                    break
+            else:
+                probe_all(wide, fresh[len(top) :], options.pairs.probe_bands)
+        else:
+            probe_all(wide, fresh, 1)
         # Still no line: on down the list, a few at a time, until one has a line's wires.
         step = options.pairs.probe_candidates
         for at in range(len(fresh), len(ranked) if lost else 0, step):

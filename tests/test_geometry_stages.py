@@ -177,8 +177,8 @@ def test_the_wider_look_probes_the_first_looks_directions_again_in_its_own_bands
             first.append(found)
         return found
 
-    def bands(scene, candidates, azimuth, options, heights):
-        out = real_bands(scene, candidates, azimuth, options, heights)
+    def bands(scene, candidates, azimuth, options, heights, slices=False):
+        out = real_bands(scene, candidates, azimuth, options, heights, slices=slices)
         if first and candidates is first[0]:
             # The first look's images lie 300 m across the line: so do its bands.
             shift = 300.0 * plan_axes(azimuth)[1]
