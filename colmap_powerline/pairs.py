@@ -306,6 +306,13 @@ def _to_plane(view: SceneImage, uv: F64, z: float) -> F64:
     return c[:2] + t[:, None] * rays[:, :2]
 
 
+def _footprint_across(view: SceneImage, normal: F64, z: float) -> float:
+    """How wide the image's footprint at the height ``z`` is along ``normal``."""
+    w, h = view.width, view.height
+    corners = np.array([[0.0, 0.0], [w, 0.0], [w, h], [0.0, h]])
+    return float(np.ptp(_to_plane(view, corners, z) @ normal))
+
+
 def _pick_spread(scene: Scene, n: int) -> list[SceneImage]:
     """Up to ``n`` images spread over the flight (farthest-point sampling of centres)."""
     centres = scene.centers_in_world[:, :2]
@@ -632,14 +639,13 @@ def provisional_corridors(
     # field edge piles up more line pixels than they do).
     bands = [(bins[lo], bins[hi + 1]), tuple(np.quantile(c, [0.05, 0.95]))]
     if slices:
-        # The whole band in slices as wide as an image's lines spread across it (a
-        # footprint), those holding the most line pixels first: a few pairs over the whole
-        # band of a large survey see a few places of it, and a line crossing the survey
-        # lies in one slice (on the full road flight, 162 images over 400 m: the road
-        # line's direction probed densest band and whole band, no wires; in its slice, the
-        # line).
+        # The whole band in slices as wide as an image's footprint across it, those
+        # holding the most line pixels first: a few pairs over the whole band of a large
+        # survey see a few places of it, and a line crossing the survey lies in one slice
+        # (on the full road flight, 162 images over 400 m: the road line's direction
+        # probed in its densest and whole bands, no wires; in its slice, the line).
         width = float(
-            np.median([np.ptp(np.quantile(p @ normal, [0.05, 0.95])) for p in per_image if len(p)])
+            np.median([_footprint_across(v, normal, z) for v, _, _ in candidates.analysed])
         )
         w_lo, w_hi = bands[1]
         n = max(int(np.ceil((w_hi - w_lo) / max(width, 1.0))), 1)
