@@ -194,6 +194,37 @@ def test_the_wider_look_probes_the_first_looks_directions_again_in_its_own_bands
     assert err < 2.0 and corridor.measured, corridor.azimuth_deg
 
 
+def test_a_directions_slices_tile_its_whole_band_a_footprint_wide(small_scene):
+    """Probed slice by slice, a direction's whole band is cut into slices as wide as an
+    image's footprint across it, the slices with the most line pixels first."""
+    from colmap_powerline.pairs import (
+        _footprint_across,
+        direction_candidates,
+        provisional_corridors,
+    )
+
+    options = PairsOptions(wire_azimuth_deg=AZIMUTH + 90.0)  # across the strips: a wide band
+    found = direction_candidates(small_scene, options)
+    heights = (5.0, 60.0)
+    plain = provisional_corridors(small_scene, found, AZIMUTH + 90.0, options, heights)
+    cut = provisional_corridors(small_scene, found, AZIMUTH + 90.0, options, heights, slices=True)
+    assert len(plain) == 2 and [c.centre_xy.tolist() for c in cut[:2]] == [
+        c.centre_xy.tolist() for c in plain
+    ]
+    whole, parts = plain[1], cut[2:]
+    normal = plan_axes(AZIMUTH + 90.0)[1]
+    width = np.median([_footprint_across(v, normal, whole.height) for v, _, _ in found.analysed])
+    assert len(parts) >= 2
+    for part in parts:
+        assert part.wires_half_width <= 0.5 * width + 1e-6
+    # Together they span the whole band.
+    lo = min(float(p.centre_xy @ normal) - p.wires_half_width for p in parts)
+    hi = max(float(p.centre_xy @ normal) + p.wires_half_width for p in parts)
+    w_mid = float(whole.centre_xy @ normal)
+    assert lo <= w_mid - whole.wires_half_width + 1e-6
+    assert hi >= w_mid + whole.wires_half_width - 1e-6
+
+
 def test_corridor_with_given_direction_is_measured(corridor):
     assert corridor.azimuth_deg == AZIMUTH and not corridor.from_images and corridor.measured
     samples = corridor.sample_points(1.0)
