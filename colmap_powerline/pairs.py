@@ -619,11 +619,12 @@ def provisional_corridors(
     z = candidates.ground_z + 0.5 * (lo_h + hi_h)
     # The pairs only have to see the wires' usual heights, not the extremes.
     band = (lo_h + 0.25 * (hi_h - lo_h), lo_h + 0.6 * (hi_h - lo_h))
-    per_image = [
-        _to_plane(v, _line_pixels(v, g, f, _image_angle(v, azimuth, z), options), z)
-        for v, g, f in candidates.analysed
-    ]
-    xy = np.concatenate(per_image)
+    xy = np.concatenate(
+        [
+            _to_plane(v, _line_pixels(v, g, f, _image_angle(v, azimuth, z), options), z)
+            for v, g, f in candidates.analysed
+        ]
+    )
     direction, normal = plan_axes(azimuth)
     c, s = xy @ normal, xy @ direction
     bins = np.arange(c.min() - 1, c.max() + 2, 1.0)

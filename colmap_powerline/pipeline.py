@@ -493,8 +493,8 @@ def probe_corridors(
             # large survey: its bands of a direction are where those images lie (on the
             # full road flight, 162 images over 400 m, none of its six sees the road line,
             # and its direction was probed far from it and over the whole survey at once;
-            # the wider look's densest band of that direction holds the line). A band
-            # probed already is not probed again (``tried``).
+            # a footprint-wide slice of it holds the line, below). A band probed already
+            # is not probed again (``tried``).
             ranked = [int(k) for k in np.argsort(wide.weights)[::-1]]
         else:
             # Another line runs in a direction of its own: one near the found line's can

@@ -95,6 +95,16 @@ def test_corridor_direction_estimated_from_images(small_scene, truth):
     assert lo <= np.median(mid[:, 2]) <= hi
 
 
+def _finds_the_line(scene, caplog, logged: str) -> None:
+    """The probes (as patched) log ``logged`` and end with a measured corridor along the
+    line."""
+    with caplog.at_level("INFO", logger="colmap_powerline.pipeline"):
+        corridor = probe_corridor(scene, ReconstructionOptions(show_progress=False))
+    assert any(logged in r.getMessage() for r in caplog.records)
+    err = abs((corridor.azimuth_deg - AZIMUTH + 90) % 180 - 90)
+    assert err < 2.0 and corridor.measured, corridor.azimuth_deg
+
+
 def test_the_direction_search_widens_when_no_direction_has_wires(small_scene, monkeypatch, caplog):
     """When the first look offers only directions without wires (here one across the line),
     more images are read, ranked alike at every angle, and the line is found among them."""
@@ -109,12 +119,7 @@ def test_the_direction_search_widens_when_no_direction_has_wires(small_scene, mo
         return real(scene, across)
 
     monkeypatch.setattr(pipeline, "direction_candidates", first_look_misses)
-    options = ReconstructionOptions(show_progress=False)
-    with caplog.at_level("INFO", logger="colmap_powerline.pipeline"):
-        corridor = probe_corridor(small_scene, options)
-    assert any("no direction gave wires" in r.getMessage() for r in caplog.records)
-    err = abs((corridor.azimuth_deg - AZIMUTH + 90) % 180 - 90)
-    assert err < 2.0 and corridor.measured, corridor.azimuth_deg
+    _finds_the_line(small_scene, caplog, "no direction gave wires")
 
 
 def test_the_probes_go_on_down_the_wider_look_until_a_line_is_found(
@@ -150,11 +155,7 @@ def test_the_probes_go_on_down_the_wider_look_until_a_line_is_found(
 
     monkeypatch.setattr(pipeline, "direction_candidates", lines_elsewhere)
     monkeypatch.setattr(pipeline, "_probe", probe)
-    with caplog.at_level("INFO", logger="colmap_powerline.pipeline"):
-        corridor = probe_corridor(small_scene, ReconstructionOptions(show_progress=False))
-    assert any("still no line" in r.getMessage() for r in caplog.records)
-    err = abs((corridor.azimuth_deg - AZIMUTH + 90) % 180 - 90)
-    assert err < 2.0 and corridor.measured, corridor.azimuth_deg
+    _finds_the_line(small_scene, caplog, "still no line")
 
 
 def test_the_wider_look_probes_the_first_looks_directions_again_in_its_own_bands(
@@ -187,11 +188,7 @@ def test_the_wider_look_probes_the_first_looks_directions_again_in_its_own_bands
 
     monkeypatch.setattr(pipeline, "direction_candidates", directions)
     monkeypatch.setattr(pipeline, "provisional_corridors", bands)
-    with caplog.at_level("INFO", logger="colmap_powerline.pipeline"):
-        corridor = probe_corridor(small_scene, ReconstructionOptions(show_progress=False))
-    assert any("no direction gave wires" in r.getMessage() for r in caplog.records)
-    err = abs((corridor.azimuth_deg - AZIMUTH + 90) % 180 - 90)
-    assert err < 2.0 and corridor.measured, corridor.azimuth_deg
+    _finds_the_line(small_scene, caplog, "no direction gave wires")
 
 
 def test_a_directions_slices_tile_its_whole_band_a_footprint_wide(small_scene):
