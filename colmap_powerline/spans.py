@@ -40,6 +40,7 @@ from __future__ import annotations
 import dataclasses
 import itertools
 import logging
+import warnings
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -50,6 +51,7 @@ import numpy as np
 import numpy.typing as npt
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
+from scipy.spatial import cKDTree
 
 from .geometry import (
     across_of,
@@ -801,6 +803,185 @@ def _pole(
     return None
 
 
+# A distribution pole holds its conductors on a cross-arm a little under them (pin
+# insulators), a bar across the line that the images show plainly from above, where the
+# wires bend too little at the pole for a kink (the road flight: spans of 45-59 m that sag
+# about 0.2 m, a bend of about 2°; one curve misses their points by ±7 cm). Along each leg,
+# every ARM_STEP_M, the segment across the line from ARM_PAST_M outside its outermost wires
+# is read ARM_DEPTHS_M under their median height, in each view that sees it ARM_MIN_PX long
+# or more: the grey along its image less the grey beside it, shifted along the line by a
+# bar's half-width and POLE_FLANK_PX on each side (a bar, not an edge), in robust σ over
+# the places read. The views' median (ground texture under the line lies elsewhere in
+# each view; the arm only at its place) at the best depth must stand ARM_MIN_RATIO times
+# as high above the median within ARM_WINDOW_M as the best place POLE_CLEAR_M or more away.
+ARM_STEP_M = 0.05
+ARM_DEPTHS_M = np.arange(-0.3, 1.2001, 0.05)
+ARM_PAST_M = 0.6
+ARM_HALF_WIDTH_M = 0.05  # a cross-arm is 9-12 cm wide
+ARM_MIN_PX = 30.0
+ARM_SAMPLES = 24  # along each segment
+ARM_WINDOW_M = 2.0
+ARM_BLOCK_M = 25.0  # the leg is read a block of places at a time (memory)
+ARM_OTHERS_STEP_M = 0.02  # other wires sampled about a pixel apart in the images
+# On the road flight, at the five poles where the images show a cross-arm: 6.7-12.2; at
+# the 23 other places looked at along its 370 m (among them those where the pole read
+# stood at 3-12 with no pole): 1.0-2.7. Confirmed on the two generators (README).
+ARM_MIN_RATIO = 3.0
+
+
+def _arm_geometry(work: _Work, leg: _Leg, li: int, u: F64) -> tuple[F64, F64, F64, F64]:
+    """At each place ``u`` along the leg: the outermost wires across it (c), their median
+    height, and how many of the leg's wires are there."""
+    cs, zs = [], []
+    for k in work.on_leg(li):
+        w = work.wires[k]
+        s = leg.s_along(w, u)
+        inside = (s >= w.s_range[0]) & (s <= w.s_range[1])
+        p = w.points(s)
+        c = np.where(inside, leg.c(p[:, :2]), np.nan)
+        cs.append(c)
+        zs.append(np.where(inside, p[:, 2], np.nan))
+    if not cs:
+        nan = np.full(len(u), np.nan)
+        return nan, nan, nan, np.zeros(len(u))
+    c, z = np.array(cs), np.array(zs)
+    n = np.isfinite(c).sum(axis=0)
+    with np.errstate(all="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        return np.nanmin(c, axis=0), np.nanmax(c, axis=0), np.nanmedian(z, axis=0), n
+
+
+def _arm_reads(views: Sequence, leg: _Leg, u: F64, c0: F64, c1: F64, z: F64, others: F64) -> F64:
+    """(U, D) the views' median bar score (see ARM_MIN_RATIO's note) of the cross-arm
+    segments at ``u`` across from ``c0`` to ``c1``, ARM_DEPTHS_M under ``z``; NaN where
+    fewer than POLE_VIEWS[0] views read it. ``others``: (K, 3) points along the wires of
+    the other legs; a view does not read a segment that their image lies along (the wires
+    of a line crossing above: the shared generator's `twolines`)."""
+    t = np.linspace(0.0, 1.0, ARM_SAMPLES)
+    cc = (c0 - ARM_PAST_M)[:, None] + (c1 - c0 + 2 * ARM_PAST_M)[:, None] * t[None]
+    xy = leg.origin + u[:, None, None] * leg.direction + cc[..., None] * leg.normal
+    n_u, n_d = len(u), len(ARM_DEPTHS_M)
+    pts = np.empty((n_u, n_d, ARM_SAMPLES, 3))
+    pts[..., :2] = xy[:, None]
+    pts[..., 2] = (z[:, None] - ARM_DEPTHS_M[None])[..., None]
+    flat = pts.reshape(-1, 3)
+    scores = []
+    for v in views:
+        uv, depth, ok = v.project(flat)
+        ok = ok.reshape(n_u, n_d, ARM_SAMPLES).all(axis=(1, 2))
+        if not ok.any():
+            continue
+        uv = uv.reshape(n_u, n_d, ARM_SAMPLES, 2)
+        length = np.linalg.norm(uv[:, :, -1] - uv[:, :, 0], axis=-1).min(axis=1)
+        use = ok & (length >= ARM_MIN_PX)
+        if use.sum() < 2:
+            continue
+        k = int(np.flatnonzero(use)[0])
+        ahead = v.project((pts[k, 0, 0] + np.r_[leg.direction, 0.0])[None])[0][0]
+        along = ahead - uv[k, 0, 0]
+        along /= np.linalg.norm(along)
+        half = max(1.0, ARM_HALF_WIDTH_M / float(v.gsd_at_depth(float(np.median(depth)))))
+        shift = (half + POLE_FLANK_PX) * along
+        q = uv[use]
+        lo = np.floor(np.nanmin(q.reshape(-1, 2), axis=0) - abs(shift) - 4).astype(int)
+        hi = np.ceil(np.nanmax(q.reshape(-1, 2), axis=0) + abs(shift) + 4).astype(int)
+        lo = np.maximum(lo, 0)
+        grey = read_image(v.path, cv2.IMREAD_GRAYSCALE)[lo[1] : hi[1] + 1, lo[0] : hi[0] + 1]
+        crop = cv2.GaussianBlur(grey.astype(np.float32), (0, 0), 0.8)
+        lines = q - lo - 0.5
+        mid = _grey_along(crop, lines)
+        a = mid - _grey_along(crop, lines + shift)
+        b = mid - _grey_along(crop, lines - shift)
+        ab = np.r_[a.ravel(), b.ravel()]
+        sigma = 1.4826 * float(np.median(np.abs(ab - np.median(ab)))) + 1e-6
+        bar = np.where(a * b > 0, np.sign(a) * np.minimum(np.abs(a), np.abs(b)), 0.0) / sigma
+        if len(others):
+            ouv, _, ook = v.project(others)
+            if ook.sum():
+                near, _ = cKDTree(ouv[ook]).query(q.reshape(-1, 2), distance_upper_bound=(
+                    float(np.linalg.norm(shift)) + half + 1.0))  # fmt: skip
+                crossed = np.isfinite(near).reshape(q.shape[:-1]).mean(axis=-1) >= 0.25
+                bar = np.where(crossed, np.nan, bar)
+        score = np.full((n_u, n_d), np.nan)
+        score[use] = bar
+        scores.append(score)
+    if len(scores) < POLE_VIEWS[0]:
+        return np.full((n_u, n_d), np.nan)
+    stack = np.array(scores)
+    enough = np.isfinite(stack).sum(axis=0) >= POLE_VIEWS[0]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        return np.where(enough, np.nanmedian(stack, axis=0), np.nan)
+
+
+def _cross_arms(
+    views: Sequence, work: _Work, axes: list[_Leg], found: list[_Found], options: SpanOptions
+) -> list[_Found]:
+    """Cross-arms the images show along each leg, away from the supports found (see
+    ARM_MIN_RATIO's note): a support at each, its wires those of the leg there."""
+    out: list[_Found] = []
+    for li, leg in enumerate(axes):
+        idx = work.on_leg(li)
+        if len(idx) < 2:
+            continue
+        ends = np.array([leg.ends_u(work.wires[k]) for k in idx])
+        u_all = np.arange(ends[:, 0].min(), ends[:, 1].max() + 1e-9, ARM_STEP_M)
+        c0, c1, z, n = _arm_geometry(work, leg, li, u_all)
+        # The other legs' wires, a point every ARM_OTHERS_STEP_M along them.
+        rest = [w for k, w in enumerate(work.wires) if work.legs[k] != li]
+        others = (
+            np.concatenate([w.polyline(ARM_OTHERS_STEP_M) for w in rest])
+            if rest
+            else np.zeros((0, 3))
+        )
+        best = np.full(len(u_all), np.nan)
+        block = max(1, int(round(ARM_BLOCK_M / ARM_STEP_M)))
+        for start in range(0, len(u_all), block):
+            sl = slice(start, min(start + block, len(u_all)))
+            ok = n[sl] >= 2
+            if not ok.any():
+                continue
+            reads = _arm_reads(views, leg, u_all[sl][ok], c0[sl][ok], c1[sl][ok], z[sl][ok], others)
+            part = np.full(sl.stop - sl.start, np.nan)
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", RuntimeWarning)
+                part[ok] = np.nanmax(reads, axis=1)
+            best[sl] = part
+        w = int(round(ARM_WINDOW_M / ARM_STEP_M))
+        clear = int(round(POLE_CLEAR_M / ARM_STEP_M))
+        for k in np.flatnonzero(np.isfinite(best)):
+            lo, hi = max(0, k - w), min(len(best), k + w + 1)
+            win = best[lo:hi]
+            if best[k] < np.nanmax(win):
+                continue
+            far = np.abs(np.arange(lo, hi) - k) >= clear
+            rivals = win[far & np.isfinite(win)]
+            if len(rivals) < w:
+                continue
+            base = float(np.median(rivals))
+            rival = float(rivals.max()) - base
+            if rival <= 0 or best[k] - base < ARM_MIN_RATIO * rival:
+                continue
+            u = float(u_all[k])
+            if any(s_li == li and abs(s_u - u) <= 2 * options.support_radius
+                   for s_li, s_u, _, _ in [*found, *out]):  # fmt: skip
+                continue
+            ids = {
+                work.wires[i].wire_id
+                for i in idx
+                if leg.ends_u(work.wires[i])[0] <= u <= leg.ends_u(work.wires[i])[1]
+            }
+            logger.info(
+                "spans: a cross-arm the images show at %.1f along the line (%.1f times its "
+                "rivals within %.0f m): a support",
+                u,
+                (best[k] - base) / rival,
+                ARM_WINDOW_M,
+            )
+            out.append((li, u, "cross-arm", ids))
+    return out
+
+
 # Two wires' image curves at least this far apart (px) are told apart by their ridges (each
 # ridge is read within 1.5 px of its curve, and the grey beside it 2.5-3 px out).
 MIN_APART_PX = 6.0
@@ -1073,6 +1254,8 @@ def find_spans(
     found += _line_ends(
         views, work, axes, found, options, crossing_offset, traced_past, ground_height
     )
+    # 3b. Cross-arms the images show where the wires bend too little to tell a support.
+    found += _cross_arms(views, work, axes, found, options)
     # 4. Every wire cut at each support of its leg that it runs across.
     _cut_at_supports(work, found, axes, pts_in_world, options, wires_options, max_across)
     # A piece cut off at a support may lie on the next span's wire of the same conductor
@@ -1085,7 +1268,7 @@ def find_spans(
     # (a wire carried past one had bent the curve that placed it).
     found = [
         (li, _met_again(work.wires, work.legs, axes[li], li, u, options, max_across), how, ids)
-        if how != "wires ending"
+        if how not in ("wires ending", "cross-arm")
         else (li, u, how, ids)
         for li, u, how, ids in found
     ]
@@ -1394,7 +1577,9 @@ def _cut_at_supports(
     through it, the wire is no conductor of this line: of a line beside, where it lies
     across beyond the wires hanging from the support (:func:`_beside`: left whole, and the
     line noted in ``work.beside``), else a false pairing (dropped). A piece that does not
-    meet the other there is a tail the curve took past the support."""
+    meet the other there is a tail the curve took past the support. At a cross-arm the
+    images show (:func:`_cross_arms`), both pieces are kept: such a pole is found because
+    its wires bend too little there."""
     out = work.wires
     passed: set[tuple[int, float]] = set()  # (wire, support) a line beside passes by
     changed = True
@@ -1404,7 +1589,7 @@ def _cut_at_supports(
             li = work.legs[k]
             leg = axes[li]
             lo, hi = leg.ends_u(out[k])
-            for s_li, u, _, ids in found:
+            for s_li, u, how, ids in found:
                 r = options.support_radius
                 if s_li != li or not (lo + r < u < hi - r) or (out[k].wire_id, u) in passed:
                     continue
@@ -1438,7 +1623,11 @@ def _cut_at_supports(
                 meet = _meeting(cut[0], cut[1], leg, u, options, max_across)
                 keep = list(cut)
                 short = [w for w in cut if np.ptp(leg.ends_u(w)) < options.max_meeting_gap / 2]
-                if meet is None or (meet < options.min_kink_deg and short):
+                if how == "cross-arm":
+                    # The images show the arm the wire hangs from: both pieces are spans'
+                    # wires, however little it bends there (ARM_MIN_RATIO's note).
+                    pass
+                elif meet is None or (meet < options.min_kink_deg and short):
                     # The shorter piece is a tail (a curve carried past the support by a
                     # few metres of points; on its own its bend is not measured).
                     keep = [max(cut, key=lambda w: np.ptp(leg.ends_u(w)))]

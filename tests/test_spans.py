@@ -990,3 +990,38 @@ def test_a_line_beside_another_passes_its_support_by_and_is_told_apart():
         2,
         2,
     ]
+
+
+# A cross-arm 0.2 m under the conductors at x = 0 (their lowest point, 27.0 m up), across the
+# line (y from -3.8 to 3.8), and
+# a bar as long across it on the ground at x = 20 (a road edge, a field's end).
+_ARM = ((0.0, -3.8, 26.8), (0.0, 3.8, 26.8), 0.12)
+_GROUND_BAR = ((20.0, -3.8, 0.0), (20.0, 3.8, 0.0), 0.12)
+
+
+@pytest.mark.parametrize(("bars", "found"), [([_ARM], True), ([], False), ([_GROUND_BAR], False)])
+def test_a_pole_the_wires_hang_straight_through_is_found_by_its_cross_arm(tmp_path, bars, found):
+    # Three conductors hang in one smooth curve through x = 0, where a pole holds them on a
+    # cross-arm: the road flight's 45-59 m spans sag about 0.2 m and bend there by about 2°,
+    # below what a kink needs. The images show the arm, a bar across the line a little
+    # under the wires, in every view at one place: a support there (a suspension pole).
+    # With no arm drawn, or a bar on the ground (each view sees it at another place along
+    # the line at the wires' height), none.
+    rng = np.random.default_rng(5)
+    places = [(x, y) for x in (-12.0, -4.0, 4.0, 12.0, 24.0) for y in (-6.0, 6.0)]
+    views = _drawn_views(tmp_path, _terminal_curves({}), places, rng, bars)
+    ends = [(np.array([-60.0, y, 30.0]), np.array([60.0, y, 30.0])) for y in _TERMINAL_YS]
+    pts = [_span_points(a, b, _TERMINAL_A, rng) for a, b in ends]
+    n = np.cumsum([0] + [len(p) for p in pts])
+    pts = np.concatenate(pts)
+    wires = [_wire(pts, np.arange(n[k], n[k + 1]), np.array([1.0, 0.0]), k) for k in range(3)]
+    sp = find_spans(views, _flat, wires, [0] * 3, [_corridor(90.0)], pts)
+    arms = [s for s in sp.supports if s.found_by == "cross-arm"]
+    if found:
+        assert len(arms) == 1
+        assert arms[0].kind == "suspension"
+        assert abs(arms[0].position[0]) < 0.2
+        # Each conductor cut there: two spans of three.
+        assert sorted({p.span for p in sp.placement}) == [1, 2]
+    else:
+        assert arms == []
