@@ -729,6 +729,18 @@ def _grey_along(grey: np.ndarray, lines: F64) -> F64:
     return g.mean(axis=1).reshape(lines.shape[:-2])
 
 
+def _bar(crop: np.ndarray, lines: F64, beside: F64) -> F64:
+    """(...,) for each image line of ``lines`` (..., M, 2): the grey along it less the grey
+    along it moved by ``beside`` (px) to each side — a bar, not an edge: the smaller of the
+    two where both have one sign, else none — in robust σ of those differences."""
+    mid = _grey_along(crop, lines)
+    a = mid - _grey_along(crop, lines + beside)
+    b = mid - _grey_along(crop, lines - beside)
+    ab = np.r_[a.ravel(), b.ravel()]
+    sigma = 1.4826 * float(np.median(np.abs(ab - np.median(ab)))) + 1e-6
+    return np.where(a * b > 0, np.sign(a) * np.minimum(np.abs(a), np.abs(b)), 0.0) / sigma
+
+
 def _pole(
     views: Sequence,
     leg: _Leg,
@@ -785,12 +797,7 @@ def _pole(
         x1, y1 = np.ceil(flat.max(axis=0) + pad).astype(int) + 1
         crop = cv2.GaussianBlur(grey[y0:y1, x0:x1], (0, 0), 0.8)
         lines = uv - [x0, y0]  # each place's vertical in the crop's pixels
-        mid = _grey_along(crop, lines)
-        a = mid - _grey_along(crop, lines + (half + POLE_FLANK_PX) * normal)
-        b = mid - _grey_along(crop, lines - (half + POLE_FLANK_PX) * normal)
-        ab = np.r_[a.ravel(), b.ravel()]
-        sigma = 1.4826 * float(np.median(np.abs(ab - np.median(ab)))) + 1e-6
-        zs.append(np.where(a * b > 0, np.sign(a) * np.minimum(np.abs(a), np.abs(b)), 0.0) / sigma)
+        zs.append(_bar(crop, lines, (half + POLE_FLANK_PX) * normal))
     middle = np.median(zs, axis=0)
     for sign in (1.0, -1.0):
         score = sign * middle
@@ -904,13 +911,7 @@ def _arm_reads(views: Sequence, leg: _Leg, u: F64, c0: F64, c1: F64, z: F64, oth
         lo = np.maximum(lo, 0)
         grey = read_image(v.path, cv2.IMREAD_GRAYSCALE)[lo[1] : hi[1] + 1, lo[0] : hi[0] + 1]
         crop = cv2.GaussianBlur(grey.astype(np.float32), (0, 0), 0.8)
-        lines = q - lo - 0.5
-        mid = _grey_along(crop, lines)
-        a = mid - _grey_along(crop, lines + shift)
-        b = mid - _grey_along(crop, lines - shift)
-        ab = np.r_[a.ravel(), b.ravel()]
-        sigma = 1.4826 * float(np.median(np.abs(ab - np.median(ab)))) + 1e-6
-        bar = np.where(a * b > 0, np.sign(a) * np.minimum(np.abs(a), np.abs(b)), 0.0) / sigma
+        bar = _bar(crop, q - lo - 0.5, shift)
         if len(others):
             ouv, _, ook = v.project(others)
             if ook.sum():
