@@ -934,10 +934,14 @@ def _arm_reads(views: Sequence, leg: _Leg, u: F64, c0: F64, c1: F64, z: F64, oth
 
 def _cross_arms(
     views: Sequence, work: _Work, axes: list[_Leg], found: list[_Found], options: SpanOptions
-) -> list[_Found]:
+) -> tuple[list[_Found], dict[int, float]]:
     """Cross-arms the images show along each leg, away from the supports found (see
-    ARM_MIN_RATIO's note): a support at each, its wires those of the leg there."""
+    ARM_MIN_RATIO's note): a support at each, its wires those of the leg there. Also, per
+    support found by wires ending (index into ``found``), the strongest arm within two
+    ``support_radius`` of it and of no other support: the pole the wires end by (they end
+    where the measured stretch does, which may be past it)."""
     out: list[_Found] = []
+    at_end: dict[int, tuple[float, float]] = {}  # found index → (ratio, u)
     for li, leg in enumerate(axes):
         idx = work.on_leg(li)
         if len(idx) < 2:
@@ -981,8 +985,20 @@ def _cross_arms(
             if rival <= 0 or best[k] - base < ARM_MIN_RATIO * rival:
                 continue
             u = float(u_all[k])
-            if any(s_li == li and abs(s_u - u) <= 2 * options.support_radius
-                   for s_li, s_u, _, _ in [*found, *out]):  # fmt: skip
+            ratio = (best[k] - base) / rival
+            near = [
+                i
+                for i, (s_li, s_u, _, _) in enumerate(found)
+                if s_li == li and abs(s_u - u) <= 2 * options.support_radius
+            ]
+            if near or any(s_li == li and abs(s_u - u) <= 2 * options.support_radius
+                           for s_li, s_u, _, _ in out):  # fmt: skip
+                if (
+                    len(near) == 1
+                    and found[near[0]][2] == "wires ending"
+                    and ratio > at_end.get(near[0], (-np.inf, 0.0))[0]
+                ):
+                    at_end[near[0]] = (ratio, u)
                 continue
             ids = {
                 work.wires[i].wire_id
@@ -993,10 +1009,41 @@ def _cross_arms(
                 "spans: a cross-arm the images show at %.1f along the line (%.1f times its "
                 "rivals within %.0f m): a support",
                 u,
-                (best[k] - base) / rival,
+                ratio,
                 ARM_WINDOW_M,
             )
             out.append((li, u, "cross-arm", ids))
+    return out, {i: u for i, (_, u) in at_end.items()}
+
+
+def _ends_at_arms(
+    work: _Work, axes: list[_Leg], found: list[_Found], arms: dict[int, float], r: float
+) -> list[_Found]:
+    """Supports found by wires ending, moved to the cross-arm the images show by them
+    (:func:`_cross_arms`). Where the wires go on past the arm by more than ``r`` (the
+    measured stretch ends past the pole: the full road flight's north-west end, 4.7 m),
+    the line does not end there: a support the wires hang from, both pieces kept."""
+    out = list(found)
+    for i, u_arm in arms.items():
+        li, u_end, _, ids = found[i]
+        leg = axes[li]
+        beyond = u_end - u_arm
+        how = "wires ending"
+        if abs(beyond) > r:
+            how = "cross-arm"
+            ids = {
+                work.wires[k].wire_id
+                for k in work.on_leg(li)
+                if leg.ends_u(work.wires[k])[0] <= u_arm <= leg.ends_u(work.wires[k])[1]
+            } or ids
+        logger.info(
+            "spans: the wires ending at %.1f along the line hang from the cross-arm the "
+            "images show at %.1f: the support %s",
+            u_end,
+            u_arm,
+            "placed there" if how == "wires ending" else "placed there, the wires going on past it",
+        )
+        out[i] = (li, u_arm, how, ids)
     return out
 
 
@@ -1273,7 +1320,8 @@ def find_spans(
         views, work, axes, found, options, crossing_offset, traced_past, ground_height
     )
     # 3b. Cross-arms the images show where the wires bend too little to tell a support.
-    found += _cross_arms(views, work, axes, found, options)
+    arms, at_ends = _cross_arms(views, work, axes, found, options)
+    found = _ends_at_arms(work, axes, found, at_ends, options.support_radius) + arms
     # 4. Every wire cut at each support of its leg that it runs across.
     _cut_at_supports(work, found, axes, pts_in_world, options, wires_options, max_across)
     # A piece cut off at a support may lie on the next span's wire of the same conductor

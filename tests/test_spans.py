@@ -1025,3 +1025,22 @@ def test_a_pole_the_wires_hang_straight_through_is_found_by_its_cross_arm(tmp_pa
         assert sorted({p.span for p in sp.placement}) == [1, 2]
     else:
         assert arms == []
+
+
+@pytest.mark.parametrize(("past", "kind"), [(3.5, "end"), (6.0, "suspension")])
+def test_a_line_s_end_is_moved_to_the_cross_arm_its_wires_hang_from(tmp_path, past, kind):
+    # The wires and the images' lines stop ``past`` metres beyond the terminal pole at
+    # x = 60, whose cross-arm (0.2 m under the conductors) the images show: the end is
+    # placed at the arm, not where the wires stop. Stopping more than a support's radius
+    # past it (the full road flight's north-west end: 4.7 m; the images there show the
+    # wires going on), they go on past the pole: a suspension, the stretch past it kept.
+    rng = np.random.default_rng(12)
+    far = dict.fromkeys(_TERMINAL_YS, 60.0 + past)
+    arm = ((60.0, -3.8, 29.8), (60.0, 3.8, 29.8), 0.12)
+    places = [(x, y) for x in (44.0, 52.0, 60.0, 68.0, 76.0) for y in (-6.0, 6.0)]
+    views = _drawn_views(tmp_path, _terminal_curves(far), places, rng, [arm])
+    sp = _terminal_spans(views, rng, -past)
+    assert [s.kind for s in sp.supports] == [kind]
+    assert abs(sp.supports[0].position[0] - 60.0) < 0.2
+    if kind == "suspension":
+        assert sorted({p.span for p in sp.placement}) == [1, 2]
