@@ -633,6 +633,70 @@ def _continues(
     return going, shown
 
 
+# A line may turn at the pole where its measured wires end (an angle pole whose next leg no
+# pair measured: the 40-image road flight's field line turns by about 9° at its last pole
+# and runs on across the images). Its wires' curves, continued past their ends, are read
+# turned in plan about each end by these angles (degrees; 0 is :func:`_continues`' read).
+# Read in three pieces out to TURN_PIECES_M[-1] (a tower's members, at all angles, end
+# within a few metres of its wires' ends; a line turned at a pole runs on).
+TURN_STEP_DEG = 1.5
+MAX_TURN_DEG = 35.0
+TURN_ANGLES_DEG = np.r_[
+    -np.arange(MAX_TURN_DEG, 0.0, -TURN_STEP_DEG),
+    np.arange(TURN_STEP_DEG, MAX_TURN_DEG + 1e-9, TURN_STEP_DEG),
+]
+TURN_PIECES_M = (2.0, 5.0, 8.0, 14.0)
+
+
+def _turned(points: F64, at: F64, deg: float) -> F64:
+    """``points`` turned in plan about the vertical through ``at`` by ``deg`` (clockwise
+    seen from above, as azimuths grow)."""
+    t = np.radians(deg)
+    c, s = np.cos(t), np.sin(t)
+    rel = points[:, :2] - at[:2]
+    # An azimuth grows clockwise from +y: (x, y) -> (x cos t + y sin t, -x sin t + y cos t).
+    xy = np.c_[rel[:, 0] * c + rel[:, 1] * s, -rel[:, 0] * s + rel[:, 1] * c] + at[:2]
+    return np.c_[xy, points[:, 2]]
+
+
+def _continues_turned(
+    views: Sequence, wire: FittedWire, at_end: int, greys: dict[Path, np.ndarray], pivot: float
+) -> tuple[I64, int]:
+    """Per angle of TURN_ANGLES_DEG, how many views show ``wire`` going on past its end
+    ``at_end`` turned by it, of how many could tell: :func:`_continues`' read, along the
+    wire continued from ``pivot`` (s along its plane: the pole) in plan, in height as it
+    hangs before it, mirrored, and turned about it, in each piece between TURN_PIECES_M (a
+    view that does not see a turned curve whole does not show it)."""
+    lo, hi = wire.s_range
+    sign = -1.0 if at_end == 0 else 1.0
+    end = pivot
+    # In plan along the curve continued; in height as the wire hangs before its end,
+    # mirrored about it (the next span's wire leaves the pole as this one reaches it).
+    pieces = []
+    for a, b in zip(TURN_PIECES_M[:-1], TURN_PIECES_M[1:], strict=True):
+        d = np.linspace(a, b, 15)
+        p = wire.points(end + sign * d)
+        p[:, 2] = wire.points(end - sign * d)[:, 2]
+        pieces.append(p)
+    tip = wire.points(np.array([end]))[0]
+    edge = lo if at_end == 0 else hi
+    before = wire.points(edge - sign * np.linspace(*CONTINUATION_M, 25))
+    going = np.zeros(len(TURN_ANGLES_DEG), np.int64)
+    shown = 0
+    for v, grey, ref, _ in _plain_before(views, before, pieces[:1], pieces[0][0], greys):
+        shown += 1
+        for a, deg in enumerate(TURN_ANGLES_DEG):
+            uv = []
+            for h in pieces:
+                q, _, ok = v.project(_turned(h, tip, float(deg)))
+                if not ok.all():
+                    break
+                uv.append(q)
+            else:
+                going[a] += all(_holds(grey, q, ref) for q in uv)
+    return going, shown
+
+
 # Where a wire's line evidence stops: its curve read in pieces of EVIDENCE_PIECE_M every
 # EVIDENCE_STEP_M from EVIDENCE_SCAN_M before its measured end to as far past it, and
 # further in by as far as a round of tracing goes past an end (``traced_past``: that
@@ -995,7 +1059,7 @@ def _cross_arms(
                            for s_li, s_u, _, _ in out):  # fmt: skip
                 if (
                     len(near) == 1
-                    and found[near[0]][2] == "wires ending"
+                    and found[near[0]][2] in ENDING
                     and ratio > at_end.get(near[0], (-np.inf, 0.0))[0]
                 ):
                     at_end[near[0]] = (ratio, u)
@@ -1025,10 +1089,9 @@ def _ends_at_arms(
     the line does not end there: a support the wires hang from, both pieces kept."""
     out = list(found)
     for i, u_arm in arms.items():
-        li, u_end, _, ids = found[i]
+        li, u_end, how, ids = found[i]
         leg = axes[li]
         beyond = u_end - u_arm
-        how = "wires ending"
         if abs(beyond) > r:
             how = "cross-arm"
             ids = {
@@ -1041,7 +1104,7 @@ def _ends_at_arms(
             "images show at %.1f: the support %s",
             u_end,
             u_arm,
-            "placed there" if how == "wires ending" else "placed there, the wires going on past it",
+            "placed there" if how in ENDING else "placed there, the wires going on past it",
         )
         out[i] = (li, u_arm, how, ids)
     return out
@@ -1252,6 +1315,8 @@ def _cluster(values: F64, radius: float) -> list[I64]:
 
 
 _Found = tuple[int, float, str, set[int]]  # (leg, u along it, found by, wire ids)
+# Found where a leg's wires end (:func:`_line_ends`): the line's end, or where it turns on.
+ENDING = ("wires ending", "wires turning")
 _Located = tuple[list[int], F64, str, set[int]]  # (legs, plan position, found by, wire ids)
 
 
@@ -1270,6 +1335,9 @@ class _Work:
     next_id: int
     let_go: dict[int, I64] = field(default_factory=dict)
     beside: list[tuple[int, float, int]] = field(default_factory=list)
+    # A line's last support where its wires go on turned (:func:`_line_ends`): the turn
+    # (degrees) by the wire ids found there.
+    turns: dict[frozenset[int], float] = field(default_factory=dict)
 
     def on_leg(self, li: int) -> list[int]:
         return [k for k in range(len(self.wires)) if self.legs[k] == li]
@@ -1334,7 +1402,7 @@ def find_spans(
     # (a wire carried past one had bent the curve that placed it).
     found = [
         (li, _met_again(work.wires, work.legs, axes[li], li, u, options, max_across), how, ids)
-        if how not in ("wires ending", "cross-arm")
+        if how not in (*ENDING, "cross-arm")
         else (li, u, how, ids)
         for li, u, how, ids in found
     ]
@@ -1455,9 +1523,9 @@ def _one_per_place(found: list[_Found], options: SpanOptions) -> list[_Found]:
     """Supports of one leg placed again within ``support_radius`` of each other (two
     places where pieces met, each moved to where the pieces cut there meet) are one, as
     :func:`_clustered` makes them; a line's end stays as it is."""
-    out = [f for f in found if f[2] == "wires ending"]
+    out = [f for f in found if f[2] in ENDING]
     for li in sorted({f[0] for f in found}):
-        mine = [f for f in found if f[0] == li and f[2] != "wires ending"]
+        mine = [f for f in found if f[0] == li and f[2] not in ENDING]
         for g in _cluster(np.array([f[1] for f in mine]), options.support_radius):
             members = [mine[i] for i in g]
             kinds = {f[2] for f in members}
@@ -1625,7 +1693,36 @@ def _line_ends(
                         u_at,
                     )
                     u_at = pole
-                ends_found.append((li, u_at, "wires ending", {out[idx[i]].wire_id for i in g}))
+                # Not going on straight, but turned about the pole (the same angle for all
+                # its wires): the line turns there, its next leg not measured.
+                turn = None
+                if shown >= MIN_VIEWS_BEYOND - 1:
+                    turned = [
+                        _continues_turned(views, out[idx[i]], at_end[i], greys,
+                                          float(leg.s_of(out[idx[i]], u_at)))
+                        for i in longest
+                    ]  # fmt: skip
+                    t_going = np.sum([t[0] for t in turned], axis=0)
+                    t_shown = sum(t[1] for t in turned)
+                    best = int(np.argmax(t_going))
+                    if t_going[best] >= max(2, t_shown / 2):
+                        turn = float(abs(TURN_ANGLES_DEG[best]))
+                        logger.info(
+                            "spans: %d wires end together at %.1f along the line, and the "
+                            "images show them going on turned by %.1f° (%d of %d reads): the "
+                            "line turns there, its next leg not measured",
+                            len(g),
+                            u_at,
+                            TURN_ANGLES_DEG[best],
+                            t_going[best],
+                            t_shown,
+                        )
+                ids = {out[idx[i]].wire_id for i in g}
+                if turn is None:
+                    ends_found.append((li, u_at, "wires ending", ids))
+                else:
+                    work.turns[frozenset(ids)] = turn
+                    ends_found.append((li, u_at, "wires turning", ids))
     return ends_found
 
 
@@ -1918,9 +2015,11 @@ def _placed(
         else:
             kind = (
                 "angle"
-                if len(set(legs_m)) > 1
+                if len(set(legs_m)) > 1 or how == "wires turning"
                 else ("end" if how == "wires ending" else "suspension")
             )
+            if how == "wires turning" and len(set(legs_m)) == 1:
+                turn = work.turns.get(frozenset(merged[mi][3]), turn)
         supports_out.append(
             LineSupport(
                 support_id=new_id,

@@ -1044,3 +1044,34 @@ def test_a_line_s_end_is_moved_to_the_cross_arm_its_wires_hang_from(tmp_path, pa
     assert abs(sp.supports[0].position[0] - 60.0) < 0.2
     if kind == "suspension":
         assert sorted({p.span for p in sp.placement}) == [1, 2]
+
+
+@pytest.mark.parametrize("turn", [0.0, 12.0, -25.0])
+def test_a_line_turning_on_at_its_last_measured_pole_is_an_angle_not_an_end(tmp_path, turn):
+    # The three conductors' measurements end at the pole at x = 60; the images show the
+    # line going on past it turned by ``turn`` in plan (the 40-image road flight's field
+    # line: about 9°, its next leg not measured), or (0) not at all. Turned, the support is
+    # an angle support with that turn, not the line's end.
+    rng = np.random.default_rng(13)
+    truth = _terminal_curves({})
+    if turn:
+        t = np.radians(turn)
+        d = np.arange(0.0, 40.0, 0.02)
+        for y in _TERMINAL_YS:
+            # Clockwise from above by ``turn``, as azimuths grow: +x turns toward -y.
+            # The next span hangs as this one: mirrored about the pole.
+            z = 30.0 + _TERMINAL_A * (
+                np.cosh((60.0 - d) / _TERMINAL_A) - np.cosh(60.0 / _TERMINAL_A)
+            )
+            truth.append(np.c_[60.0 + d * np.cos(t), y - d * np.sin(t), z])
+    places = [(56.0, -8.0), (56.0, 8.0), (62.0, 0.0), (66.0, -6.0), (66.0, 6.0)]
+    views = _drawn_views(tmp_path, truth, places, rng)
+    sp = _terminal_spans(views, rng)
+    assert len(sp.supports) == 1
+    s = sp.supports[0]
+    assert abs(s.position[0] - 60.0) < 1.0
+    if turn:
+        assert s.kind == "angle" and s.found_by == "wires turning"
+        assert s.turn_deg == pytest.approx(abs(turn), abs=2.0)
+    else:
+        assert s.kind == "end" and s.found_by == "wires ending"
