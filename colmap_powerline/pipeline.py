@@ -883,6 +883,11 @@ def reconstruct(
     )
     decoded += dec
     wires, spans = _hung_where_reached(wires, spans, verified.pts_in_world, options)
+    # Tracing on to the supports may carry a structure that reaches the ground down to the
+    # floor of the heights searched: the floor rule again (shared cross seed 22: a 50 m
+    # "line" across the span 5.09-6.2 above a road, 26 m at 5.3 before; 7 of its kind were
+    # left out before tracing on).
+    wires, spans, supports = _spans_above_the_floor(wires, spans, supports, scene, options)
     timings["trace_to_supports"] = time.perf_counter() - t0
     labels = np.full(len(verified), -1, np.int64)
     for w in wires:
@@ -2506,21 +2511,74 @@ def _above_the_floor(
     across it) is cut there by the search, a wire hanging free rarely just touches it
     (shared cross seed 2: three such 'wires' at 4.7-5.0 above the ground along a tree-lined
     road, read as a second line)."""
-    kept = []
-    for k, w in enumerate(wires):
-        poly = w.polyline(0.5)
-        low = float(np.min(poly[:, 2] - scene.ground_height(poly[:, :2])))
-        if low <= min_height + inlier_distance:
-            logger.info(
-                "wires: wire %d (%.0f m) comes down to %.2f above the ground, the floor of "
-                "the heights searched: a structure reaching the ground, not a wire; left out",
-                w.wire_id,
-                w.s_range[1] - w.s_range[0],
-                low,
-            )
-            continue
-        kept.append(k)
+    kept = [
+        k for k, w in enumerate(wires) if not _at_the_floor(w, scene, min_height, inlier_distance)
+    ]
     return _kept(wires, supports, kept)
+
+
+def _at_the_floor(w: FittedWire, scene: Scene, min_height: float, inlier_distance: float) -> bool:
+    """Whether ``w``'s lowest point lies at the floor of the heights searched (logged)."""
+    poly = w.polyline(0.5)
+    low = float(np.min(poly[:, 2] - scene.ground_height(poly[:, :2])))
+    if low > min_height + inlier_distance:
+        return False
+    logger.info(
+        "wires: wire %d (%.0f m) comes down to %.2f above the ground, the floor of "
+        "the heights searched: a structure reaching the ground, not a wire; left out",
+        w.wire_id,
+        w.s_range[1] - w.s_range[0],
+        low,
+    )
+    return True
+
+
+def _spans_above_the_floor(
+    wires: list[FittedWire],
+    spans: Spans,
+    supports: list[WireSupport],
+    scene: Scene,
+    options: ReconstructionOptions,
+) -> tuple[list[FittedWire], Spans, list[WireSupport]]:
+    """:func:`_above_the_floor` on the span-wires: those left out leave their places in
+    ``spans`` too; a line left with no wire goes, with its supports, and the lines are
+    numbered again from 1 in their order."""
+    floor, inlier = options.triangulate.min_wire_height, options.wires.inlier_distance
+    keep = [k for k, w in enumerate(wires) if not _at_the_floor(w, scene, floor, inlier)]
+    if len(keep) == len(wires):
+        return wires, spans, supports
+    lines = sorted({spans.placement[k].line for k in keep})
+    number = {line: i + 1 for i, line in enumerate(lines)}
+    placement = [dataclasses.replace(spans.placement[k], line=number[spans.placement[k].line])
+                 for k in keep]  # fmt: skip
+    line_supports = [
+        dataclasses.replace(
+            t,
+            line=number[t.line],
+            lines=tuple(number[x] for x in t.lines if x in number),
+        )
+        for t in spans.supports
+        if t.line in number
+    ]
+    # Support ids stay as the placements give them: 0, 1, ... again where a line went.
+    sid = {t.support_id: i for i, t in enumerate(line_supports)}
+    placement = [
+        dataclasses.replace(
+            p, supports=tuple(None if x is None else sid.get(x) for x in p.supports)
+        )
+        for p in placement
+    ]
+    line_supports = [dataclasses.replace(t, support_id=i) for i, t in enumerate(line_supports)]
+    out = [wires[k] for k in keep]
+    spans = dataclasses.replace(
+        spans,
+        wires=out,
+        placement=placement,
+        supports=line_supports,
+        source=[spans.source[k] for k in keep],
+        legs=[spans.legs[k] for k in keep] if spans.legs else spans.legs,
+    )
+    return out, spans, [supports[k] for k in keep]
 
 
 def _without_untraced(

@@ -1075,3 +1075,42 @@ def test_a_line_turning_on_at_its_last_measured_pole_is_an_angle_not_an_end(tmp_
         assert s.turn_deg == pytest.approx(abs(turn), abs=2.0)
     else:
         assert s.kind == "end" and s.found_by == "wires ending"
+
+
+def test_a_span_wire_traced_down_to_the_floor_goes_with_its_line():
+    # After tracing on to the supports, a "line" of one wire across the span that now comes
+    # down to the floor of the heights searched (5 m above the ground: shared cross seed 22,
+    # a road's edges paired, 5.09 m at its lowest) is left out; its line goes and the other
+    # line is line 1, its supports numbered from 0.
+    import types
+
+    from colmap_powerline.pipeline import ReconstructionOptions, _spans_above_the_floor
+    from colmap_powerline.spans import LineSupport, Spans, WireSpan
+
+    def flat(a, z0):
+        return FittedWire(0, np.zeros(2), np.asarray(a, float), 1e4, 0.0, z0, (-40.0, 40.0),
+                          np.arange(3), 0.03)  # fmt: skip
+
+    wires = [
+        dataclasses.replace(flat([0.0, 1.0], 5.09), wire_id=7),  # across: the ghost
+        dataclasses.replace(flat([1.0, 0.0], 25.0), wire_id=3),
+        dataclasses.replace(flat([1.0, 0.0], 27.0), wire_id=4),
+    ]
+    sups = [
+        LineSupport(i, 2, "end", np.array([x, 0.0, 0.0]), 28.0, 0.0, (3, 4), "wires ending")
+        for i, x in ((0, -40.0), (1, 40.0))
+    ]
+    placement = [WireSpan(1, 1, (None, None), 0)] + [WireSpan(2, 1, (0, 1), k) for k in (0, 1)]
+    spans = Spans(list(wires), placement, sups, [0, 1, 2], [0, 1, 1])
+    scene = types.SimpleNamespace(ground_height=lambda xy: np.zeros(len(xy)))
+    judged = ["a", "b", "c"]  # the wires' supports, in their order
+    out, sp, kept = _spans_above_the_floor(wires, spans, judged, scene, ReconstructionOptions())
+    assert [w.wire_id for w in out] == [3, 4] and kept == ["b", "c"]
+    assert [p.line for p in sp.placement] == [1, 1]
+    assert [p.supports for p in sp.placement] == [(0, 1), (0, 1)]
+    assert [(t.support_id, t.line, t.lines) for t in sp.supports] == [(0, 1, (1,)), (1, 1, (1,))]
+    assert sp.source == [1, 2] and sp.legs == [1, 1]
+    # Nothing at the floor: all as given.
+    assert (
+        _spans_above_the_floor(wires[1:], spans, judged, scene, ReconstructionOptions())[1] is spans
+    )
