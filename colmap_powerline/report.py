@@ -400,8 +400,10 @@ def _supports_table(result: ReconstructionResult, units: str) -> str:
         "there; <i>pieces meeting</i>, one conductor's curves in the two spans meet there; "
         "<i>wires ending</i>, the wires end together where the images see past them (the "
         "position is where the measurements end, short of the tower by its insulators at "
-        "most); <i>spans crossing</i>, an angle support: where each conductor's spans on "
-        "the two legs cross in plan.</p>"
+        "most); <i>wires turning</i>, an angle support where the wires end and the images "
+        "show them going on turned (its next leg not measured); <i>cross-arm</i>, the "
+        "images show a pole's cross-arm under the wires there; <i>spans crossing</i>, an "
+        "angle support: where each conductor's spans on the two legs cross in plan.</p>"
     )
 
 
