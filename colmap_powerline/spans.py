@@ -635,17 +635,19 @@ def _continues(
 
 # A line may turn at the pole where its measured wires end (an angle pole whose next leg no
 # pair measured: the 40-image road flight's field line turns by about 9° at its last pole
-# and runs on across the images). Its wires' curves, continued past their ends, are read
-# turned in plan about each end by these angles (degrees; 0 is :func:`_continues`' read).
-# Read in three pieces out to TURN_PIECES_M[-1] (a tower's members, at all angles, end
-# within a few metres of its wires' ends; a line turned at a pole runs on).
-TURN_STEP_DEG = 1.5
+# and runs on across the images). Each view that shows a wire plainly before its end reads
+# the wire continued past the pole turned in plan about it, up to MAX_TURN_DEG either way,
+# in steps that move its far end by two pixels at most (the ridge read holds a line within
+# 1.5 px of the curve), in three pieces out to TURN_PIECES_M[-1] (a tower's members, at
+# all angles, end within a few metres of its wires' ends; a line turned at a pole runs
+# on); the view's turn is the angle where all three hold a line like the wire's, most
+# strongly. The views' turns (of the three longest wires, pooled) must agree within
+# TURN_AGREE_DEG, half of those that could tell or more.
 MAX_TURN_DEG = 35.0
-TURN_ANGLES_DEG = np.r_[
-    -np.arange(MAX_TURN_DEG, 0.0, -TURN_STEP_DEG),
-    np.arange(TURN_STEP_DEG, MAX_TURN_DEG + 1e-9, TURN_STEP_DEG),
-]
 TURN_PIECES_M = (2.0, 5.0, 8.0, 14.0)
+TURN_AGREE_DEG = 2.0
+# Turned less than this, the line goes on straight past the pole (a suspension).
+MIN_TURN_DEG = 1.5
 
 
 def _turned(points: F64, at: F64, deg: float) -> F64:
@@ -661,40 +663,51 @@ def _turned(points: F64, at: F64, deg: float) -> F64:
 
 def _continues_turned(
     views: Sequence, wire: FittedWire, at_end: int, greys: dict[Path, np.ndarray], pivot: float
-) -> tuple[I64, int]:
-    """Per angle of TURN_ANGLES_DEG, how many views show ``wire`` going on past its end
-    ``at_end`` turned by it, of how many could tell: :func:`_continues`' read, along the
-    wire continued from ``pivot`` (s along its plane: the pole) in plan, in height as it
-    hangs before it, mirrored, and turned about it, in each piece between TURN_PIECES_M (a
-    view that does not see a turned curve whole does not show it)."""
+) -> tuple[list[float], int]:
+    """The turns (degrees, clockwise from above) at which views show ``wire`` going on past
+    the pole at ``pivot`` (s along its plane) beyond its end ``at_end``, one per view that
+    shows one, and how many views could tell (those that show the wire plainly before its
+    end). The wire is continued from the pole along its plane, in height as it hangs before
+    the pole, mirrored (the next span's wire leaves the pole as this one reaches it), and
+    turned about it (see MAX_TURN_DEG's note)."""
     lo, hi = wire.s_range
     sign = -1.0 if at_end == 0 else 1.0
-    end = pivot
-    # In plan along the curve continued; in height as the wire hangs before its end,
-    # mirrored about it (the next span's wire leaves the pole as this one reaches it).
     pieces = []
     for a, b in zip(TURN_PIECES_M[:-1], TURN_PIECES_M[1:], strict=True):
         d = np.linspace(a, b, 15)
-        p = wire.points(end + sign * d)
-        p[:, 2] = wire.points(end - sign * d)[:, 2]
+        p = wire.points(pivot + sign * d)
+        p[:, 2] = wire.points(pivot - sign * d)[:, 2]
         pieces.append(p)
-    tip = wire.points(np.array([end]))[0]
+    tip = wire.points(np.array([pivot]))[0]
     edge = lo if at_end == 0 else hi
     before = wire.points(edge - sign * np.linspace(*CONTINUATION_M, 25))
-    going = np.zeros(len(TURN_ANGLES_DEG), np.int64)
+    turns: list[float] = []
     shown = 0
     for v, grey, ref, _ in _plain_before(views, before, pieces[:1], pieces[0][0], greys):
         shown += 1
-        for a, deg in enumerate(TURN_ANGLES_DEG):
-            uv = []
+        depth = float(v.project(tip[None])[1][0])
+        step = np.degrees(2.0 * float(v.gsd_at_depth(depth)) / TURN_PIECES_M[-1])
+        k = np.arange(1, int(MAX_TURN_DEG / step) + 1) * step
+        best, best_deg = 0.0, None
+        for deg in np.r_[-k[::-1], k]:
+            strength = 0.0
             for h in pieces:
                 q, _, ok = v.project(_turned(h, tip, float(deg)))
                 if not ok.all():
                     break
-                uv.append(q)
+                peak, sigma = _ridge(grey, q)
+                if not (
+                    np.sign(peak) == np.sign(ref)
+                    and abs(peak) >= max(0.5 * abs(ref), RIDGE_SIGMAS * sigma)
+                ):
+                    break
+                strength += abs(peak)
             else:
-                going[a] += all(_holds(grey, q, ref) for q in uv)
-    return going, shown
+                if strength > best:
+                    best, best_deg = strength, float(deg)
+        if best_deg is not None:
+            turns.append(best_deg)
+    return turns, shown
 
 
 # Where a wire's line evidence stops: its curve read in pieces of EVIDENCE_PIECE_M every
@@ -1702,26 +1715,29 @@ def _line_ends(
                                           float(leg.s_of(out[idx[i]], u_at)))
                         for i in longest
                     ]  # fmt: skip
-                    t_going = np.sum([t[0] for t in turned], axis=0)
+                    angles = np.array([a for t in turned for a in t[0]])
                     t_shown = sum(t[1] for t in turned)
-                    best = int(np.argmax(t_going))
-                    if t_going[best] >= max(2, t_shown / 2):
-                        turn = float(abs(TURN_ANGLES_DEG[best]))
-                        logger.info(
-                            "spans: %d wires end together at %.1f along the line, and the "
-                            "images show them going on turned by %.1f° (%d of %d reads): the "
-                            "line turns there, its next leg not measured",
-                            len(g),
-                            u_at,
-                            TURN_ANGLES_DEG[best],
-                            t_going[best],
-                            t_shown,
-                        )
+                    if len(angles):
+                        agree = np.abs(angles[:, None] - angles[None]) <= TURN_AGREE_DEG
+                        best = int(np.argmax(agree.sum(axis=1)))
+                        n_agree = int(agree[best].sum())
+                        if n_agree >= max(2, t_shown / 2):
+                            turn = float(np.median(angles[agree[best]]))
+                            logger.info(
+                                "spans: %d wires end together at %.1f along the line, and "
+                                "the images show them going on turned by %.1f° (%d of %d "
+                                "reads): the line goes on there, its next leg not measured",
+                                len(g),
+                                u_at,
+                                turn,
+                                n_agree,
+                                t_shown,
+                            )
                 ids = {out[idx[i]].wire_id for i in g}
                 if turn is None:
                     ends_found.append((li, u_at, "wires ending", ids))
                 else:
-                    work.turns[frozenset(ids)] = turn
+                    work.turns[frozenset(ids)] = abs(turn)
                     ends_found.append((li, u_at, "wires turning", ids))
     return ends_found
 
@@ -2013,13 +2029,13 @@ def _placed(
                 for b in legs_m[1:]
             )
         else:
-            kind = (
-                "angle"
-                if len(set(legs_m)) > 1 or how == "wires turning"
-                else ("end" if how == "wires ending" else "suspension")
-            )
             if how == "wires turning" and len(set(legs_m)) == 1:
                 turn = work.turns.get(frozenset(merged[mi][3]), turn)
+            kind = (
+                "angle"
+                if len(set(legs_m)) > 1 or (how == "wires turning" and turn >= MIN_TURN_DEG)
+                else ("end" if how == "wires ending" else "suspension")
+            )
         supports_out.append(
             LineSupport(
                 support_id=new_id,
