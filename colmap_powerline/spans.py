@@ -549,6 +549,13 @@ def _ridge(grey: np.ndarray, uv: F64) -> tuple[float, float]:
     (brighter or darker than beside it: the grey levels across the curve averaged along
     it, less their mean 2.5-3 px either side) at its strongest within 1.5 px of the curve,
     and the robust σ of that response 5 px or more from it (the background's)."""
+    peak, sigma, _ = _ridge_levels(grey, uv)
+    return peak, sigma
+
+
+def _ridge_levels(grey: np.ndarray, uv: F64) -> tuple[float, float, float]:
+    """:func:`_ridge`, and the grey beside the curve where the ridge is read (the
+    background's level there)."""
     t = np.gradient(uv, axis=0)
     t /= np.linalg.norm(t, axis=1, keepdims=True)
     normal = np.c_[-t[:, 1], t[:, 0]]
@@ -564,8 +571,10 @@ def _ridge(grey: np.ndarray, uv: F64) -> tuple[float, float]:
     o = RIDGE_OFFSETS_PX
     r = g - np.array([np.interp(o + d, o, g) for d in (-3.0, -2.5, 2.5, 3.0)]).mean(axis=0)
     inner = np.flatnonzero(np.abs(o) <= 1.5)
-    peak = float(r[inner[np.argmax(np.abs(r[inner]))]])
-    return peak, 1.4826 * float(np.median(np.abs(r[np.abs(o) >= 5.0]))) + 1e-6
+    at = inner[np.argmax(np.abs(r[inner]))]
+    peak = float(r[at])
+    sigma = 1.4826 * float(np.median(np.abs(r[np.abs(o) >= 5.0]))) + 1e-6
+    return peak, sigma, float(g[at] - peak)
 
 
 def _plain_before(
@@ -574,11 +583,12 @@ def _plain_before(
     curves: Sequence[F64],
     near: F64,
     greys: dict[Path, np.ndarray],
-) -> Iterator[tuple[Any, np.ndarray, float, list[F64]]]:
+) -> Iterator[tuple[Any, np.ndarray, tuple[float, float], list[F64]]]:
     """The views, nearest ``near`` first and at most MAX_CONTINUATION_VIEWS of them, that
     show a wire plainly along ``before`` (a stretch of it before its end: its ridge at
     least RIDGE_SIGMAS σ of the background's) and see each of ``curves`` whole: each
-    view, its grey image, that ridge and the curves in its pixels."""
+    view, its grey image, that ridge and the grey beside it, and the curves in its
+    pixels."""
     shown = 0
     for v in sorted(views, key=lambda v: np.linalg.norm(v.center_in_world[:2] - near[:2])):
         if shown >= MAX_CONTINUATION_VIEWS:
@@ -590,19 +600,29 @@ def _plain_before(
         if min(np.ptp(q[:, 0]) + np.ptp(q[:, 1]) for q in uv) < 10:  # too short to read
             continue
         grey = _grey(v, greys)
-        ref, sigma = _ridge(grey, uv[0])
+        ref, sigma, ground = _ridge_levels(grey, uv[0])
         if abs(ref) < RIDGE_SIGMAS * sigma:
             continue  # the measured wire itself is not plain here
         shown += 1
-        yield v, grey, ref, uv[1:]
+        yield v, grey, (ref, ground), uv[1:]
 
 
-def _holds(grey: np.ndarray, uv: F64, ref: float) -> bool:
-    """Whether the image curve ``uv`` holds a line like the measured wire's (ridge ``ref``):
-    of its polarity and at least half its contrast (and RIDGE_SIGMAS σ of the background's)."""
-    peak, sigma = _ridge(grey, uv)
+def _holds(grey: np.ndarray, uv: F64, ref: tuple[float, float]) -> bool:
+    """Whether the image curve ``uv`` holds a line like the measured wire's (``ref``: its
+    ridge and the grey beside it where it was measured): of its polarity and at least half
+    its contrast (and RIDGE_SIGMAS σ of the background's). A thin wire covers part of a
+    pixel: its own grey lies beyond the grey beside it by its ridge or more. Where the
+    ground here lies beyond even that bound, by as much again (ground texture moves the grey
+    beside a wire by about its ridge; a bright wire over a concrete drive, a dark one over a
+    shadow: the full road flight's south-east end, its wires bright over the soil and dark
+    over a drive), the wire may show either way, and a line of either polarity
+    RIDGE_SIGMAS σ strong holds it."""
+    ridge, ground_before = ref
+    peak, sigma, ground = _ridge_levels(grey, uv)
+    if (ground - ground_before) * np.sign(ridge) > 2.0 * abs(ridge):
+        return bool(abs(peak) >= RIDGE_SIGMAS * sigma)
     return bool(
-        np.sign(peak) == np.sign(ref) and abs(peak) >= max(0.5 * abs(ref), RIDGE_SIGMAS * sigma)
+        np.sign(peak) == np.sign(ridge) and abs(peak) >= max(0.5 * abs(ridge), RIDGE_SIGMAS * sigma)
     )
 
 
@@ -699,13 +719,9 @@ def _continues_turned(
             seen += 1
             strength = 0.0
             for q, _, _ in projected:
-                peak, sigma = _ridge(grey, q)
-                if not (
-                    np.sign(peak) == np.sign(ref)
-                    and abs(peak) >= max(0.5 * abs(ref), RIDGE_SIGMAS * sigma)
-                ):
+                if not _holds(grey, q, ref):
                     break
-                strength += abs(peak)
+                strength += abs(_ridge(grey, q)[0])
             else:
                 if strength > best:
                     best, best_deg = strength, float(deg)

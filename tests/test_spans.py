@@ -1114,3 +1114,42 @@ def test_a_span_wire_traced_down_to_the_floor_goes_with_its_line():
     assert (
         _spans_above_the_floor(wires[1:], spans, judged, scene, ReconstructionOptions())[1] is spans
     )
+
+
+def test_a_line_going_on_over_brighter_ground_than_its_wires_is_not_ended(tmp_path):
+    # The wires (grey 170) show bright over the field (110) and dark over a concrete drive
+    # (210) that the line crosses from x = 59 on, just past where their measurements end
+    # (the full road flight's south-east end: a drive beside the road, the wires going on
+    # over it). Read for the wires' polarity over the field, the stretch over the drive
+    # held none, and the line "ended" there; over ground beyond the wires' own grey, a line
+    # of either polarity holds them: the line goes on, no support is made up.
+    import cv2
+    import pycolmap
+
+    from colmap_powerline.scene import SceneImage
+
+    rng = np.random.default_rng(14)
+    truth = _terminal_curves(dict.fromkeys(_TERMINAL_YS, 100.0))
+    f, size = 300.0, 600
+    camera = pycolmap.Camera(
+        model="PINHOLE", width=size, height=size, params=[f, f, size / 2, size / 2], camera_id=1
+    )
+    rot = np.diag([1.0, -1.0, -1.0])
+    views = []
+    for k, (x, y) in enumerate([(62.0, -8.0), (62.0, 8.0), (56.0, 0.0)]):
+        path = tmp_path / f"view{k}.png"
+        im = SceneImage(k + 1, path.name, path, camera, rot, -rot @ np.array([x, y, 50.0]))
+        line = np.zeros((size * 4, size * 4), np.float32)
+        for p in truth:
+            uv, _, ok = im.project(p)
+            q = np.round((uv[ok] + 0.5) * 4 - 0.5).astype(np.int32)
+            cv2.polylines(line, [q], False, 1.0, thickness=4)
+        cover = cv2.resize(line, (size, size), interpolation=cv2.INTER_AREA)
+        ground = np.full((size, size), 110.0)
+        edge = im.project(np.array([[59.0, 0.0, 30.0]]))[0][0, 0]  # the drive behind x = 59
+        ground[:, int(np.ceil(edge)) :] = 210.0
+        grey = ground + cover * (170.0 - ground) + rng.normal(0.0, 4.0, ground.shape)
+        cv2.imwrite(str(path), np.clip(grey, 0, 255).astype(np.uint8))
+        views.append(im)
+    sp = _terminal_spans(views, rng)
+    assert sp.supports == []
