@@ -611,20 +611,19 @@ def _holds(grey: np.ndarray, uv: F64, ref: tuple[float, float]) -> bool:
     """Whether the image curve ``uv`` holds a line like the measured wire's (``ref``: its
     ridge and the grey beside it where it was measured): of its polarity and at least half
     its contrast (and RIDGE_SIGMAS σ of the background's). A thin wire covers part of a
-    pixel (its ridge is that part of its grey less the ground's): where the ground here
-    lies nearer the wire's grey than where it was measured, by D, the ridge may be smaller
-    by up to D, and half of what is left is asked; where D reaches the ridge, the wire may
-    show either way (a bright wire over a concrete drive: the full road flight's south-east
-    end, its wires 60 grey levels bright over the soil, 5-16 over the drive, 91 levels
-    brighter), and a line of either polarity RIDGE_SIGMAS σ strong holds it."""
+    pixel: its ridge is that part of its grey less the ground's. Where the ground here has
+    come nearer the wire's grey than where it was measured by as much as the ridge, the
+    wire may show either way (a bright wire over a concrete drive: the full road flight's
+    south-east end, its wires 60-77 grey levels bright over the soil, 5-16 over the drive,
+    91-96 levels brighter), and a line of either polarity RIDGE_SIGMAS σ strong holds it.
+    (Asking less where the ground came nearer by less took a lattice tower's members for a
+    line turned past its end on the shared `soil` seed 25.)"""
     ridge, ground_before = ref
     peak, sigma, ground = _ridge_levels(grey, uv)
-    nearer = max(float((ground - ground_before) * np.sign(ridge)), 0.0)
-    if nearer >= abs(ridge):
+    if (ground - ground_before) * np.sign(ridge) >= abs(ridge):
         return bool(abs(peak) >= RIDGE_SIGMAS * sigma)
     return bool(
-        np.sign(peak) == np.sign(ridge)
-        and abs(peak) >= max(0.5 * (abs(ridge) - nearer), RIDGE_SIGMAS * sigma)
+        np.sign(peak) == np.sign(ridge) and abs(peak) >= max(0.5 * abs(ridge), RIDGE_SIGMAS * sigma)
     )
 
 
