@@ -607,7 +607,7 @@ def _plain_before(
         yield v, grey, (ref, ground), uv[1:]
 
 
-def _holds(grey: np.ndarray, uv: F64, ref: tuple[float, float]) -> bool:
+def _holds(grey: np.ndarray, uv: F64, ref: tuple[float, float], either: bool = True) -> bool:
     """Whether the image curve ``uv`` holds a line like the measured wire's (``ref``: its
     ridge and the grey beside it where it was measured): of its polarity and at least half
     its contrast (and RIDGE_SIGMAS σ of the background's). A thin wire covers part of a
@@ -617,10 +617,13 @@ def _holds(grey: np.ndarray, uv: F64, ref: tuple[float, float]) -> bool:
     south-east end, its wires 60-77 grey levels bright over the soil, 5-16 over the drive,
     91-96 levels brighter), and a line of either polarity RIDGE_SIGMAS σ strong holds it.
     (Asking less where the ground came nearer by less took a lattice tower's members for a
-    line turned past its end on the shared `soil` seed 25.)"""
+    line turned past its end on the shared `soil` seed 25.) Not with ``either`` False:
+    where a line's end is placed, its evidence would run on along a tower's members over
+    the bright ground under it (0.1-0.45 m further on the shared and the package's
+    towers)."""
     ridge, ground_before = ref
     peak, sigma, ground = _ridge_levels(grey, uv)
-    if (ground - ground_before) * np.sign(ridge) >= abs(ridge):
+    if either and (ground - ground_before) * np.sign(ridge) >= abs(ridge):
         return bool(abs(peak) >= RIDGE_SIGMAS * sigma)
     return bool(
         np.sign(peak) == np.sign(ridge) and abs(peak) >= max(0.5 * abs(ridge), RIDGE_SIGMAS * sigma)
@@ -781,7 +784,7 @@ def _evidence_stops(
             q, _, ok = v.project(piece)
             if not ok.all():
                 break
-            held.append(_holds(grey, q, ref))
+            held.append(_holds(grey, q, ref, either=False))
         if len(held) < 8:
             continue
         # The split of the pieces into held before and not held after that most of them
