@@ -621,8 +621,13 @@ def _holds(grey: np.ndarray, uv: F64, ref: tuple[float, float], either: bool = T
     where a line's end is placed, its evidence would run on along a tower's members over
     the bright ground under it (0.1-0.45 m further on the shared and the package's
     towers)."""
+    return _like(_ridge_levels(grey, uv), ref, either)
+
+
+def _like(levels: tuple[float, float, float], ref: tuple[float, float], either: bool) -> bool:
+    """:func:`_holds` on a curve's ridge read (:func:`_ridge_levels`)."""
     ridge, ground_before = ref
-    peak, sigma, ground = _ridge_levels(grey, uv)
+    peak, sigma, ground = levels
     if either and (ground - ground_before) * np.sign(ridge) >= abs(ridge):
         return bool(abs(peak) >= RIDGE_SIGMAS * sigma)
     return bool(
@@ -723,9 +728,10 @@ def _continues_turned(
             seen += 1
             strength = 0.0
             for q, _, _ in projected:
-                if not _holds(grey, q, ref):
+                levels = _ridge_levels(grey, q)
+                if not _like(levels, ref, True):
                     break
-                strength += abs(_ridge(grey, q)[0])
+                strength += abs(levels[0])
             else:
                 if strength > best:
                     best, best_deg = strength, float(deg)
@@ -969,12 +975,24 @@ def _arm_geometry(work: _Work, leg: _Leg, li: int, u: F64) -> tuple[F64, F64, F6
         return np.nanmin(c, axis=0), np.nanmax(c, axis=0), np.nanmedian(z, axis=0), n
 
 
-def _arm_reads(views: Sequence, leg: _Leg, u: F64, c0: F64, c1: F64, z: F64, others: F64) -> F64:
+def _arm_reads(
+    views: Sequence,
+    leg: _Leg,
+    u: F64,
+    c0: F64,
+    c1: F64,
+    z: F64,
+    others: F64,
+    greys: dict[Path, np.ndarray],
+    trees: dict[Path, cKDTree | None],
+) -> F64:
     """(U, D) the views' median bar score (see ARM_MIN_RATIO's note) of the cross-arm
     segments at ``u`` across from ``c0`` to ``c1``, ARM_DEPTHS_M under ``z``; NaN where
     fewer than POLE_VIEWS[0] views read it. ``others``: (K, 3) points along the wires of
     the other legs; a view does not read a segment that their image lies along (the wires
-    of a line crossing above: the shared generator's `twolines`)."""
+    of a line crossing above: the shared generator's `twolines`). ``greys``: the grey images
+    read so far (:func:`_grey`); ``trees``: per view, the image of ``others`` (None: it
+    sees none), kept from block to block of the leg."""
     t = np.linspace(0.0, 1.0, ARM_SAMPLES)
     cc = (c0 - ARM_PAST_M)[:, None] + (c1 - c0 + 2 * ARM_PAST_M)[:, None] * t[None]
     xy = leg.origin + u[:, None, None] * leg.direction + cc[..., None] * leg.normal
@@ -1012,17 +1030,18 @@ def _arm_reads(views: Sequence, leg: _Leg, u: F64, c0: F64, c1: F64, z: F64, oth
         lo = np.floor(np.nanmin(q.reshape(-1, 2), axis=0) - abs(shift) - 4).astype(int)
         hi = np.ceil(np.nanmax(q.reshape(-1, 2), axis=0) + abs(shift) + 4).astype(int)
         lo = np.maximum(lo, 0)
-        grey = read_image(v.path, cv2.IMREAD_GRAYSCALE)[lo[1] : hi[1] + 1, lo[0] : hi[0] + 1]
-        crop = cv2.GaussianBlur(grey.astype(np.float32), (0, 0), 0.8)
+        grey = _grey(v, greys)[lo[1] : hi[1] + 1, lo[0] : hi[0] + 1]
+        crop = cv2.GaussianBlur(grey, (0, 0), 0.8)
         bar = _bar(crop, q - lo - 0.5, shift)
-        if len(others):
+        if len(others) and v.path not in trees:
             ouv, _, ook = v.project(others)
-            if ook.sum():
-                near, _ = cKDTree(ouv[ook]).query(q.reshape(-1, 2), distance_upper_bound=(
-                    float(np.linalg.norm(shift)) + half + 1.0))  # fmt: skip
-                crossed = np.isfinite(near).reshape(q.shape[:-1]).mean(axis=-1)
-                crossed = crossed >= ARM_CROSSED_SHARE
-                bar = np.where(crossed, np.nan, bar)
+            trees[v.path] = cKDTree(ouv[ook]) if ook.any() else None
+        tree = trees.get(v.path)
+        if tree is not None:
+            near, _ = tree.query(q.reshape(-1, 2), distance_upper_bound=(
+                float(np.linalg.norm(shift)) + half + 1.0))  # fmt: skip
+            crossed = np.isfinite(near).reshape(q.shape[:-1]).mean(axis=-1)
+            bar = np.where(crossed >= ARM_CROSSED_SHARE, np.nan, bar)
         score = np.full((n_u, n_d), np.nan)
         score[use] = bar
         scores.append(score)
@@ -1045,6 +1064,7 @@ def _cross_arms(
     where the measured stretch does, which may be past it)."""
     out: list[_Found] = []
     at_end: dict[int, tuple[float, float]] = {}  # found index → (ratio, u)
+    greys: dict[Path, np.ndarray] = {}  # the views' grey images, each read once while kept
     for li, leg in enumerate(axes):
         idx = work.on_leg(li)
         if len(idx) < 2:
@@ -1059,6 +1079,7 @@ def _cross_arms(
             if rest
             else np.zeros((0, 3))
         )
+        trees: dict[Path, cKDTree | None] = {}  # per view, the other legs' wires' image
         best = np.full(len(u_all), np.nan)
         block = max(1, int(round(ARM_BLOCK_M / ARM_STEP_M)))
         for start in range(0, len(u_all), block):
@@ -1066,7 +1087,8 @@ def _cross_arms(
             ok = n[sl] >= 2
             if not ok.any():
                 continue
-            reads = _arm_reads(views, leg, u_all[sl][ok], c0[sl][ok], c1[sl][ok], z[sl][ok], others)
+            reads = _arm_reads(views, leg, u_all[sl][ok], c0[sl][ok], c1[sl][ok], z[sl][ok],
+                               others, greys, trees)  # fmt: skip
             part = np.full(sl.stop - sl.start, np.nan)
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", RuntimeWarning)
